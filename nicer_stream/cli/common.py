@@ -1,0 +1,45 @@
+"""Shared CLI plumbing: one-line errors, source options from flags."""
+from __future__ import annotations
+
+import functools
+import sys
+
+import typer
+
+from nicer_stream.errors import UserError
+
+
+def user_errors(fn):
+    """Turn UserError/FileNotFoundError into a one-line message and exit code 2."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except UserError as e:
+            typer.echo(f"error: {e}", err=True)
+            raise typer.Exit(2)
+        except FileNotFoundError as e:
+            typer.echo(f"error: file not found: {e.filename or e}", err=True)
+            raise typer.Exit(2)
+
+    return wrapper
+
+
+def parse_intrinsics(text: str | None) -> tuple[float, float, float, float] | None:
+    """'fx,fy,cx,cy' -> tuple, or None."""
+    if not text:
+        return None
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = ()
+    if len(vals) != 4:
+        raise UserError(f"--intrinsics must be 'fx,fy,cx,cy' (four numbers), got '{text}'")
+    return vals  # type: ignore[return-value]
+
+
+def not_built(command: str, issue: int) -> None:
+    """Exit non-zero for a command that a later issue brings."""
+    typer.echo(f"'nicer-stream {command}' is not built yet (issue #{issue} brings it)", err=True)
+    sys.exit(3)
