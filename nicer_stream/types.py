@@ -85,6 +85,9 @@ class Frame:
     gt_pose: np.ndarray | None = None
     gt_depth: np.ndarray | None = None
     name: str = ""
+    timestamp_ns: int | None = None
+    """Exact sensor time in integer nanoseconds when the source has one (MCAP stamps);
+    `timestamp` (float seconds) cannot hold epoch times to the nanosecond."""
 
     @property
     def height(self) -> int:

@@ -1,7 +1,7 @@
 """What every frame source shares: options, the iteration protocol, resizing."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Iterator
 
 import cv2
@@ -66,15 +66,8 @@ def resize_frame(frame: Frame, opts: SourceOptions) -> Frame:
     if frame.gt_depth is not None:
         # Nearest keeps depth edges honest (no mixing of foreground and background).
         depth = cv2.resize(frame.gt_depth, (w, h), interpolation=cv2.INTER_NEAREST)
-    return Frame(
-        index=frame.index,
-        timestamp=frame.timestamp,
-        rgb=rgb,
-        intrinsics=frame.intrinsics.resized(w, h),
-        gt_pose=frame.gt_pose,
-        gt_depth=depth,
-        name=frame.name,
-    )
+    # replace() keeps every other field (name, timestamp_ns, ...).
+    return replace(frame, rgb=rgb, intrinsics=frame.intrinsics.resized(w, h), gt_depth=depth)
 
 
 def intrinsics_from_override(opts: SourceOptions, width: int, height: int) -> Intrinsics | None:

@@ -18,21 +18,47 @@ def register(app: typer.Typer) -> None:
         not_built("map", 3)
 
     @app.command("eval")
-    def eval_() -> None:
-        """Recompute eval.json for an output directory (issue #2)."""
-        not_built("eval", 2)
+    def eval_(
+        outdir: str = typer.Argument(..., help="Output directory of a run (trajectory.tum, mesh.ply, renders/, summary.json)."),
+        source: str = typer.Option(None, "--source", help="Source URI with ground truth, e.g. replica:PATH (default: summary.json's)."),
+        max_side: int = typer.Option(None, "--max-side", help="Resize frames so the longer side is at most N pixels."),
+        stride: int = typer.Option(1, "--stride", help="Keep every N-th frame (as in the run)."),
+        start: int = typer.Option(0, "--start", help="Skip this many frames first (as in the run)."),
+        max_frames: int = typer.Option(None, "--max-frames", help="Stop after this many frames (as in the run)."),
+    ) -> None:
+        """Recompute eval.json for an output directory against a source's ground truth and print a table."""
+        from pathlib import Path
 
-    @app.command("priors")
-    def priors() -> None:
-        """Precompute a prior cache (issue #5)."""
-        not_built("priors", 5)
+        from nicer_stream.cli.common import user_errors
+        from nicer_stream.cli.eval_cmd import eval_command
+
+        user_errors(eval_command)(Path(outdir), source, max_side, stride, start, max_frames)
+
+    from nicer_stream.cli.priors_cmd import priors
+
+    app.command("priors")(priors)
 
     @app.command("convert")
-    def convert() -> None:
-        """Convert outputs to MCAP (sinks issue)."""
-        not_built("convert", 6)
+    def convert(
+        outdir: str = typer.Argument(..., help="Output directory of a run (trajectory.tum, mesh.ply, renders/, summary.json)."),
+        to: str = typer.Option("mcap", "--to", help="Output format: mcap or rrd."),
+        out: str = typer.Option(None, "--out", help="Output file (default OUTDIR/recording.mcap or .rrd)."),
+        force: bool = typer.Option(False, "--force", help="Overwrite an existing output file."),
+    ) -> None:
+        """Convert an output directory to an MCAP (Foxglove) or Rerun recording."""
+        from pathlib import Path
+
+        from nicer_stream.cli.common import user_errors
+        from nicer_stream.cli.convert_cmd import convert_command
+
+        user_errors(convert_command)(Path(outdir), to, Path(out) if out else None, force)
 
     @app.command("inspect")
-    def inspect() -> None:
-        """Describe a source or recording (sinks issue)."""
-        not_built("inspect", 6)
+    def inspect(
+        target: str = typer.Argument(..., help="A .rrd or .mcap file, or a source URI such as replica:PATH."),
+    ) -> None:
+        """Describe a recording (.rrd entities, .mcap topics) or a source (frames, size, intrinsics, GT)."""
+        from nicer_stream.cli.common import user_errors
+        from nicer_stream.cli.inspect_cmd import inspect_command
+
+        user_errors(inspect_command)(target)

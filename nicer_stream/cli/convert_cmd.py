@@ -1,0 +1,148 @@
+"""`nicer-stream convert OUTDIR --to mcap|rrd [--out FILE]`: replay an output directory into a sink.
+
+Reads OUTDIR/trajectory.tum (required), mesh.ply, renders/frame_NNNNNN.npz (rgb, depth,
+normal) and summary.json's `intrinsics` {fx, fy, cx, cy, width, height} when present.
+Trajectory line i is frame i; a frame with a render (and known intrinsics) is logged with
+its images, the others as poses only.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from nicer_stream.errors import UserError
+from nicer_stream.io.output_dir import MESH_FILE, RENDERS_DIR, SUMMARY_FILE, TRAJECTORY_FILE, render_name
+from nicer_stream.io.trajectory import read_tum
+from nicer_stream.types import Intrinsics
+from sinks.base import Sink
+
+FORMATS = {"mcap": ".mcap", "rrd": ".rrd"}
+
+
+@dataclass(frozen=True)
+class ConvertResult:
+    """What was written: the file, poses, frames with images, mesh size (None: no mesh.ply),
+    and renders left out because summary.json gives no intrinsics."""
+
+    out: Path
+    poses: int
+    images: int
+    mesh_vertices: int | None
+    mesh_faces: int | None
+    renders_without_intrinsics: int = 0
+
+
+def read_intrinsics(outdir: Path) -> Intrinsics | None:
+    """summary.json's `intrinsics` entry, or None when the file or the key is absent."""
+    path = outdir / SUMMARY_FILE
+    if not path.is_file():
+        return None
+    try:
+        entry = json.loads(path.read_text()).get("intrinsics")
+        if entry is None:
+            return None
+        return Intrinsics(float(entry["fx"]), float(entry["fy"]), float(entry["cx"]), float(entry["cy"]),
+                          int(entry["width"]), int(entry["height"]))
+    except (json.JSONDecodeError, AttributeError, KeyError, TypeError, ValueError) as e:
+        raise UserError(f"{path}: unreadable 'intrinsics' entry ({e}): it needs fx, fy, cx, cy, width, height") from None
+
+
+def _resolve_out(outdir: Path, to: str, out: Path | None, force: bool) -> Path:
+    if to not in FORMATS:
+        raise UserError(f"--to must be one of {', '.join(FORMATS)}, got '{to}'")
+    out = out if out is not None else outdir / f"recording{FORMATS[to]}"
+    if out.suffix != FORMATS[to]:
+        raise UserError(f"--out {out} must end in {FORMATS[to]} for --to {to}")
+    if out.exists() and not force:
+        raise UserError(f"{out} already exists: pass --force to overwrite it or choose another --out")
+    return out
+
+
+def _open_sink(to: str, out: Path) -> Sink:
+    if to == "mcap":
+        from sinks.mcap_sink import McapSink
+
+        return McapSink(out)
+    from sinks.rerun_sink import RerunSink
+
+    return RerunSink(out)
+
+
+def _load_render(path: Path) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """renders/frame_NNNNNN.npz -> rgb (H, W, 3), depth (H, W) or None, normal (H, W, 3) or None."""
+    try:
+        with np.load(path) as z:
+            rgb = z["rgb"]
+            return rgb, z["depth"] if "depth" in z else None, z["normal"] if "normal" in z else None
+    except (OSError, ValueError, KeyError) as e:
+        raise UserError(f"{path}: unreadable render ({e}): it needs an 'rgb' array; delete or rewrite it") from None
+
+
+def _log_frames(sink: Sink, outdir: Path, times: np.ndarray, poses: np.ndarray, intr: Intrinsics | None) -> int:
+    """Log every pose, with its render when there is one; returns the number of frames with images."""
+    images = 0
+    for i, (t, T) in enumerate(zip(times, poses)):
+        render = outdir / RENDERS_DIR / render_name(i)
+        if intr is None or not render.is_file():
+            sink.log_pose(i, float(t), T)
+            continue
+        rgb, depth, normal = _load_render(render)
+        h, w = rgb.shape[:2]
+        frame_intr = intr if (intr.width, intr.height) == (w, h) else intr.resized(w, h)
+        sink.log_frame(i, float(t), rgb, frame_intr, T, depth=depth, normal=normal)
+        images += 1
+    return images
+
+
+def _load_mesh(path: Path):
+    """mesh.ply -> (vertices (V, 3), faces (F, 3), vertex colours (V, 3|4) uint8 or None)."""
+    import trimesh
+
+    try:
+        mesh = trimesh.load(path, process=False, force="mesh")
+    except Exception as e:  # trimesh raises many types on corrupt files
+        raise UserError(f"{path}: unreadable mesh ({e}): delete or rewrite it") from None
+    colors = None
+    if getattr(mesh.visual, "kind", None) == "vertex":
+        colors = np.asarray(mesh.visual.vertex_colors)[:, :3]
+    return np.asarray(mesh.vertices), np.asarray(mesh.faces), colors
+
+
+def convert_outputs(outdir: Path, to: str = "mcap", out: Path | None = None, force: bool = False) -> ConvertResult:
+    """Replay OUTDIR into a new .mcap or .rrd file; see the module docstring."""
+    outdir = Path(outdir)
+    if not outdir.is_dir():
+        raise UserError(f"{outdir} is not a directory: point at an output directory written by 'nicer-stream run'")
+    traj = outdir / TRAJECTORY_FILE
+    if not traj.is_file():
+        raise UserError(f"no {TRAJECTORY_FILE} in {outdir}: point at an output directory written by 'nicer-stream run'")
+    try:
+        times, poses = read_tum(traj)
+    except ValueError as e:
+        raise UserError(f"{e}: fix or rewrite the trajectory file") from None
+    out = _resolve_out(outdir, to, out, force)
+    intr = read_intrinsics(outdir)
+    mesh_path = outdir / MESH_FILE
+    mesh = _load_mesh(mesh_path) if mesh_path.is_file() else None
+    with _open_sink(to, out) as sink:
+        images = _log_frames(sink, outdir, times, poses, intr)
+        sink.log_trajectory(poses[:, :3, 3], "estimate", rotations=poses[:, :3, :3])
+        if mesh is not None:
+            sink.log_mesh(*mesh)
+    n_renders = len(list((outdir / RENDERS_DIR).glob("frame_*.npz"))) if (outdir / RENDERS_DIR).is_dir() else 0
+    return ConvertResult(out, len(poses), images, None if mesh is None else len(mesh[0]),
+                         None if mesh is None else len(mesh[1]), n_renders if intr is None else 0)
+
+
+def convert_command(outdir: Path, to: str, out: Path | None, force: bool) -> None:
+    """CLI entry: convert and print one summary line."""
+    r = convert_outputs(outdir, to, out, force)
+    mesh = "no mesh" if r.mesh_faces is None else f"mesh {r.mesh_vertices} vertices / {r.mesh_faces} faces"
+    typer.echo(f"wrote {r.out}: {r.poses} poses, {r.images} frames with images, {mesh}")
+    if r.renders_without_intrinsics:
+        typer.echo(f"note: {r.renders_without_intrinsics} renders left out: {SUMMARY_FILE} has no 'intrinsics' entry",
+                   err=True)

@@ -1,0 +1,72 @@
+"""`nicer-stream eval OUTDIR --source URI`: recompute OUTDIR/eval.json and print a table."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from nicer_stream.errors import UserError
+from nicer_stream.io import output_dir as od
+
+_ROWS = [
+    ("ATE RMSE Sim(3)", "ate_rmse_m", "m"),
+    ("ATE RMSE SE(3)", "ate_se3_rmse_m", "m"),
+    ("Sim(3) scale", "sim3_scale", ""),
+    ("RPE trans", "rpe_trans_m", "m"),
+    ("RPE rot", "rpe_rot_deg", "deg"),
+    ("depth L1", "depth_l1_m", "m"),
+    ("PSNR", "psnr_db", "dB"),
+    ("SSIM", "ssim", ""),
+]
+_MESH_ROWS = [
+    ("mesh accuracy", "acc_m", "m"),
+    ("mesh completion", "comp_m", "m"),
+    ("completion ratio", "comp_ratio", ""),
+    ("normal consistency", "normal_consistency", ""),
+]
+
+
+def _fmt(value: float | None, unit: str) -> str:
+    return "-" if value is None else f"{value:.4f} {unit}".rstrip()
+
+
+def format_table(rep: od.EvalReport) -> str:
+    """Human-readable two-column table of an EvalReport (null shown as '-')."""
+    rows = [(name, _fmt(getattr(rep, key), unit)) for name, key, unit in _ROWS]
+    rows += [(name, _fmt(getattr(rep.mesh, key), unit)) for name, key, unit in _MESH_ROWS]
+    rows.append(("mesh reference", rep.mesh.reference or "-"))
+    v = rep.evaluated_views
+    size = f" at {v.width}x{v.height}" if v.width else ""
+    rows.append(("evaluated views", f"{len(v.frame_indices)}{size}"))
+    rows.append(("priors", ", ".join(rep.priors) or "-"))
+    w = max(len(r[0]) for r in rows)
+    return "\n".join(f"{name:<{w}}  {val}" for name, val in rows)
+
+
+def eval_command(
+    outdir: Path,
+    source: str | None,
+    max_side: int | None = None,
+    stride: int = 1,
+    start: int = 0,
+    max_frames: int | None = None,
+) -> od.EvalReport:
+    """Evaluate `outdir` against source URI `source` (default: summary.json's `source`), write eval.json, print a table."""
+    # Heavy imports (torch, trimesh, sources) only once the command runs.
+    from nicer_stream.eval.evaluate import evaluate_output_dir
+    from sources import open_source
+    from sources.base import SourceOptions
+
+    if not outdir.is_dir():
+        raise UserError(f"output directory {outdir} not found: give the OUTDIR of a 'nicer-stream run' or 'map'")
+    if source is None:
+        source = od.read_summary(outdir).source if (outdir / od.SUMMARY_FILE).is_file() else None
+        if source is None:
+            raise UserError("no --source given and summary.json names none: pass --source URI (e.g. replica:PATH)")
+    opts = SourceOptions(start=start, stride=stride, max_frames=max_frames, max_side=max_side)
+    src = open_source(source, opts)
+    report = evaluate_output_dir(outdir, src)
+    path = od.write_eval(outdir, report)
+    typer.echo(format_table(report))
+    typer.echo(f"wrote {path}")
+    return report

@@ -1,0 +1,277 @@
+"""Configuration: frozen dataclasses, one per component, and the named presets.
+
+`paper` holds the paper's settings (Sec. 3, ../shared/paper); `fast` is sized
+for a 2-core CPU. A JSON/TOML file may override any field by its nested name;
+unknown keys are errors.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import tomllib
+from dataclasses import dataclass, field, fields, is_dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from nicer_stream.errors import UserError
+from nicer_stream.losses.weights import LossWeights
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Hierarchical scene representation (Sec. 3.1)."""
+
+    pe_levels: int = 6
+    """Positional-encoding frequencies of x for the geometry MLPs."""
+    coarse_res: int = 32
+    """Coarse dense grid resolution (vertices per axis)."""
+    coarse_dim: int = 32
+    """Coarse grid feature width."""
+    coarse_hidden: int = 64
+    """Coarse MLP hidden width (one hidden layer)."""
+    fine_levels: int = 8
+    """Number of fine dense grids."""
+    fine_dim: int = 4
+    """Feature width per fine level."""
+    fine_res_min: int = 32
+    """Coarsest fine resolution (Eq. 2)."""
+    fine_res_max: int = 128
+    """Finest fine resolution (Eq. 2)."""
+    fine_hidden: int = 64
+    """Fine MLP hidden width."""
+    fine_layers: int = 3
+    """Fine MLP hidden layers."""
+    geo_feature_dim: int = 32
+    """Geometric feature width output by each geometry MLP (z_coarse, z_fine)."""
+    color_levels: int = 16
+    """Colour hash-grid levels."""
+    color_dim: int = 2
+    """Colour feature width per level."""
+    color_res_min: int = 16
+    """Coarsest colour resolution."""
+    color_res_max: int = 2048
+    """Finest colour resolution."""
+    color_log2_table: int = 22
+    """log2 of hash-table rows per level (the release uses 24: ~6 GB with Adam state)."""
+    color_hidden: int = 64
+    """Colour MLP hidden width."""
+    color_layers: int = 2
+    """Colour MLP hidden layers."""
+    view_pe_levels: int = 4
+    """Positional-encoding frequencies of the view direction."""
+    sphere_radius: float = 0.9
+    """Geometric initialisation: SDF = radius - |x| (camera inside a sphere), in normalised units."""
+
+
+@dataclass(frozen=True)
+class RenderConfig:
+    """Ray sampling and volume rendering (Sec. 3.2)."""
+
+    n_probe: int = 640
+    """Uniform samples per ray evaluated without gradient to place the others."""
+    n_importance: int = 64
+    """Importance samples per ray (with gradient)."""
+    n_uniform: int = 32
+    """Extra stratified samples per ray (with gradient)."""
+    near_m: float = 0.05
+    """Closest sample distance from the camera, metres."""
+    beta_mode: str = "adaptive"
+    """'adaptive' (Eq. 8, voxel counts), 'global' (one learnable beta, VolSDF) or 'fixed'."""
+    beta_fixed: float = 0.01
+    """Beta for 'fixed' mode and the initial value for 'global' (normalised units)."""
+    beta_c0: float = 1.208e-2
+    """Eq. 8 constant c0."""
+    beta_c1: float = 6.26471e-6
+    """Eq. 8 constant c1 (per counted sample)."""
+    beta_c2: float = 2.3e-3
+    """Eq. 8 constant c2."""
+    beta_voxels: int = 64
+    """Voxel counter resolution per axis."""
+    beta_count_weight: float = 1.0
+    """Each mapping sample adds this to its voxel's count. With fewer rays and samples
+    than the paper (8096 rays x ~98 samples), a weight of paper/ours keeps the same
+    count-per-optimisation-effort curve."""
+    chunk_rays: int = 2048
+    """Rays per chunk when rendering whole images without gradient."""
+
+
+@dataclass(frozen=True)
+class LossConfig:
+    """Mapping losses (Sec. 3.3)."""
+
+    weights: LossWeights = field(default_factory=LossWeights)
+    """Term weights (Eq. 12)."""
+    warp_frames: int = 2
+    """Other window frames each ray is warped into (warping and flow terms)."""
+    first_depth_median_m: float = 2.0
+    """Scale rule of the first SLAM mapping: the first frame's depth-prior median is taken
+    as this many metres (the paper's fixed w=20, q=0 assumes Omnidata's output range)."""
+
+
+@dataclass(frozen=True)
+class MappingConfig:
+    """Mapping optimiser and schedule (Sec. 3.3-3.4)."""
+
+    iters: int = 100
+    """Iterations per mapping call."""
+    first_iters: int = 100
+    """Iterations of the first mapping call (initialisation from the sphere)."""
+    rays: int = 8096
+    """Rays per iteration, spread over the window's frames."""
+    fine_start: float = 0.25
+    """Fraction of iterations after which the fine SDF joins."""
+    ba_start: float = 0.75
+    """Fraction after which colour grids and window poses join (local BA)."""
+    lr: float = 2e-3
+    """Base learning rate (MLPs)."""
+    lr_geo_grid_factor: float = 20.0
+    """Coarse and fine grid learning-rate factor."""
+    lr_color_grid_factor: float = 5.0
+    """Colour grid learning-rate factor."""
+    lr_pose: float = 1e-3
+    """Learning rate of window poses during local BA."""
+    every: int = 5
+    """Map every this many frames."""
+    keyframe_every: int = 10
+    """Add a keyframe every this many frames."""
+    window_random: int = 5
+    """Window frames drawn at random from all keyframes."""
+    window_recent: int = 10
+    """Window frames drawn from the latest `recent_pool` keyframes."""
+    recent_pool: int = 20
+    """Size of the recent-keyframe pool."""
+    eikonal_points: int = 1024
+    """Extra uniformly sampled points for the Eikonal term per iteration."""
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """Camera tracking (Sec. 3.3)."""
+
+    iters: int = 100
+    """Iterations per frame."""
+    rays: int = 1024
+    """Pixels sampled afresh each iteration."""
+    lr: float = 5e-3
+    """Adam learning rate on the pose twist."""
+    init: str = "constant_velocity"
+    """'previous' or 'constant_velocity'."""
+    max_jump_m: float = 0.5
+    """A tracked pose further than this from the prediction is a tracking loss."""
+    max_jump_deg: float = 30.0
+    """A rotation change beyond this is a tracking loss."""
+    loss_jump: float = 4.0
+    """Final loss above this multiple of the running median is a tracking loss."""
+
+
+@dataclass(frozen=True)
+class BoundConfig:
+    """Scene bound used to normalise into [-1, 1]^3 (never from ground truth)."""
+
+    mode: str = "depth_prior"
+    """'depth_prior' (first frame's scaled depth prior plus margin) or 'config'."""
+    centre: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """Bound centre in the world (first camera) frame, metres, for mode 'config'."""
+    half_extent: float = 4.0
+    """Half side of the cube, metres, for mode 'config'."""
+    margin: float = 1.5
+    """Multiplier on the prior-derived extent (room for the unseen)."""
+    max_depth_m: float = 8.0
+    """Depths beyond this are ignored when estimating the bound."""
+
+
+@dataclass(frozen=True)
+class MeshConfig:
+    """Mesh extraction."""
+
+    resolution: int = 512
+    """Marching-cubes grid resolution per axis."""
+
+
+@dataclass(frozen=True)
+class SlamConfig:
+    """Everything a run needs; each component receives only its own part."""
+
+    preset: str = "paper"
+    """Name of the preset this config started from."""
+    max_side: int | None = None
+    """Resize input so the longer side is at most this (None: native)."""
+    model: ModelConfig = field(default_factory=ModelConfig)
+    """Scene representation."""
+    render: RenderConfig = field(default_factory=RenderConfig)
+    """Rendering."""
+    loss: LossConfig = field(default_factory=LossConfig)
+    """Loss weights."""
+    mapping: MappingConfig = field(default_factory=MappingConfig)
+    """Mapping."""
+    tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    """Tracking."""
+    bound: BoundConfig = field(default_factory=BoundConfig)
+    """Scene bound."""
+    mesh: MeshConfig = field(default_factory=MeshConfig)
+    """Mesh extraction."""
+    seed: int = 0
+    """Random seed."""
+
+
+def paper() -> SlamConfig:
+    """The paper's settings (Sec. 3.4 and the release's hyperparameters)."""
+    return SlamConfig(preset="paper")
+
+
+def fast() -> SlamConfig:
+    """Sized for a 2-core CPU: 320 px images, fewer rays, samples and iterations."""
+    return SlamConfig(
+        preset="fast",
+        max_side=320,
+        model=ModelConfig(color_levels=12, color_res_max=512, color_log2_table=17),
+        render=RenderConfig(n_probe=48, n_importance=16, n_uniform=4, beta_count_weight=40.0),
+        mapping=MappingConfig(iters=60, first_iters=300, rays=1024, eikonal_points=256),
+        tracking=TrackingConfig(iters=30, rays=512, lr=3e-3),
+        mesh=MeshConfig(resolution=192),
+    )
+
+
+PRESETS = {"paper": paper, "fast": fast}
+
+
+def preset(name: str) -> SlamConfig:
+    """A named preset; unknown names are a UserError."""
+    if name not in PRESETS:
+        raise UserError(f"unknown preset '{name}': use one of {', '.join(PRESETS)}")
+    return PRESETS[name]()
+
+
+def override(cfg: Any, values: dict[str, Any], where: str = "config") -> Any:
+    """Return `cfg` with nested `values` applied; unknown keys raise UserError."""
+    names = {f.name: f for f in fields(cfg)}
+    changes = {}
+    for key, val in values.items():
+        if key not in names:
+            raise UserError(f"unknown key '{where}.{key}': valid keys are {', '.join(sorted(names))}")
+        cur = getattr(cfg, key)
+        if is_dataclass(cur):
+            if not isinstance(val, dict):
+                raise UserError(f"'{where}.{key}' must be a table of settings")
+            changes[key] = override(cur, val, f"{where}.{key}")
+        else:
+            changes[key] = tuple(val) if isinstance(val, list) else val
+    return replace(cfg, **changes)
+
+
+def load(preset_name: str, file: str | Path | None = None) -> SlamConfig:
+    """Preset `preset_name`, optionally overridden by a .json or .toml file."""
+    cfg = preset(preset_name)
+    if file is None:
+        return cfg
+    path = Path(file)
+    if not path.exists():
+        raise UserError(f"config file {path} does not exist")
+    text = path.read_text()
+    values = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
+    return override(cfg, values)
+
+
+def to_dict(cfg: Any) -> dict:
+    """Plain dict of a config (for summary.json)."""
+    return dataclasses.asdict(cfg)

@@ -1,0 +1,185 @@
+"""Evaluate an output directory (trajectory.tum, mesh.ply, renders/, summary.json) against a source's GT.
+
+The estimate lives in the SLAM world; everything is compared in the GT world
+after the Umeyama Sim(3) alignment of camera centres (trajectory.py). Missing
+inputs give None (null) metrics; malformed files raise one-line UserErrors.
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+
+from nicer_stream.errors import UserError
+from nicer_stream.eval import image, mesh as mesh_m, reference, trajectory
+from nicer_stream.io import output_dir as od
+from nicer_stream.io.trajectory import read_tum
+from nicer_stream.types import Frame
+from sources.base import FrameSource, SourceOptions, resize_frame
+
+CULL_MAX_SIDE = 320  # GT depth kept for occlusion culling is downsampled to this (memory)
+
+
+@dataclass
+class _View:
+    """One render next to its source frame at the render's size."""
+
+    frame_index: int
+    rgb: np.ndarray  # (H, W, 3) float32 rendered
+    depth: np.ndarray | None  # (H, W) rendered z-depth, estimate units
+    gt_rgb: np.ndarray
+    gt_depth: np.ndarray | None
+
+
+def _read_trajectory(out: Path) -> tuple[np.ndarray, np.ndarray] | None:
+    path = out / od.TRAJECTORY_FILE
+    if not path.is_file():
+        return None
+    try:
+        return read_tum(path)
+    except ValueError as e:
+        raise UserError(f"{e}: rewrite or delete the trajectory") from None
+
+
+def _render_paths(out: Path) -> dict[int, Path]:
+    """frame index -> render file, from the file names frame_NNNNNN.npz."""
+    paths = {}
+    for p in sorted((out / od.RENDERS_DIR).glob("frame_*.npz")):
+        try:
+            paths[int(p.stem.split("_", 1)[1])] = p
+        except ValueError:
+            continue
+    return paths
+
+
+def _load_view(path: Path, frame: Frame) -> _View | None:
+    try:
+        with np.load(path) as z:
+            rgb = np.asarray(z["rgb"], np.float32)
+            depth = np.asarray(z["depth"], np.float32) if "depth" in z.files else None
+    except (OSError, ValueError, KeyError) as e:
+        raise UserError(f"cannot read render {path} ({e}): delete it or rerun mapping") from None
+    H, W = rgb.shape[:2]
+    f = resize_frame(frame, SourceOptions(max_side=max(W, H)))
+    if (f.width, f.height) != (W, H):
+        warnings.warn(f"render {path.name} is {W}x{H} but the source frame is {f.width}x{f.height}: skipped")
+        return None
+    return _View(frame.index, rgb, depth, f.rgb, f.gt_depth)
+
+
+def _match(est_t: np.ndarray, frame_t: np.ndarray, tol: float = 5e-4) -> np.ndarray:
+    """Positions of source frames matching each trajectory line: by timestamp when
+    unambiguous, else by order (first min(N, M) lines)."""
+    if len(frame_t) and len(est_t):
+        j = np.abs(est_t[:, None] - frame_t[None, :]).argmin(1)
+        if (np.abs(frame_t[j] - est_t) < tol).all() and len(np.unique(j)) == len(j):
+            return j
+    return np.arange(min(len(est_t), len(frame_t)))
+
+
+def _trajectory_metrics(rep: od.EvalReport, est: np.ndarray, gt: np.ndarray) -> trajectory.Sim3 | None:
+    """Fill ATE/RPE fields; returns the Sim(3) alignment (None if < 2 poses)."""
+    if len(est) < 2:
+        return None
+    sim = trajectory.ate(est, gt, with_scale=True)
+    rep.ate_rmse_m, rep.sim3_scale = sim.rmse_m, sim.alignment.scale
+    rep.ate_se3_rmse_m = trajectory.ate(est, gt, with_scale=False).rmse_m
+    r = trajectory.rpe(est, gt, delta=1, scale=sim.alignment.scale)
+    rep.rpe_trans_m, rep.rpe_rot_deg = r.trans_rmse_m, r.rot_rmse_deg
+    return sim.alignment
+
+
+def _image_metrics(rep: od.EvalReport, views: list[_View], scale: float | None) -> None:
+    """Per-view PSNR/SSIM/depth L1, averaged over views."""
+    if not views:
+        return
+    rep.psnr_db = float(np.mean([image.psnr(v.rgb, v.gt_rgb) for v in views]))
+    rep.ssim = float(np.mean([image.ssim(v.rgb, v.gt_rgb) for v in views]))
+    if scale is not None:
+        l1 = [image.depth_l1(v.depth, v.gt_depth, scale) for v in views if v.depth is not None and v.gt_depth is not None]
+        l1 = [x for x in l1 if x is not None]
+        rep.depth_l1_m = float(np.mean(l1)) if l1 else None
+    rep.evaluated_views = od.EvaluatedViews(
+        frame_indices=[v.frame_index for v in views], width=views[0].rgb.shape[1], height=views[0].rgb.shape[0]
+    )
+
+
+def _load_mesh(path: Path) -> trimesh.Trimesh | None:
+    if not path.is_file():
+        return None
+    try:
+        m = trimesh.load(path, force="mesh", process=False)
+    except Exception as e:  # trimesh raises many types on corrupt files
+        raise UserError(f"cannot read mesh {path} ({e}): delete it or rerun") from None
+    return m if isinstance(m, trimesh.Trimesh) and len(m.faces) else None
+
+
+def _sim3_matrix(a: trajectory.Sim3) -> np.ndarray:
+    M = np.eye(4)
+    M[:3, :3], M[:3, 3] = a.scale * a.R, a.t
+    return M
+
+
+def evaluate_output_dir(
+    out_dir: str | Path,
+    source: FrameSource,
+    mesh_samples: int = 200_000,
+    voxel: float = reference.DEFAULT_VOXEL_M,
+    threshold: float = mesh_m.COMPLETION_THRESHOLD_M,
+    seed: int = 0,
+) -> od.EvalReport:
+    """Compare OUT's trajectory, renders and mesh with the GT of `source` (iterated once)."""
+    out = Path(out_dir)
+    if not out.is_dir():
+        raise UserError(f"output directory {out} not found: give the OUTDIR of a 'nicer-stream run' or 'map'")
+    rep = od.EvalReport()
+    if (out / od.SUMMARY_FILE).is_file():
+        rep.priors = list(od.read_summary(out).priors)
+    traj = _read_trajectory(out)
+    renders = _render_paths(out)
+    est_mesh = _load_mesh(out / od.MESH_FILE) if traj is not None else None
+    gt_mesh_fn = getattr(source, "gt_mesh", None)
+    gt_mesh = gt_mesh_fn() if est_mesh is not None and callable(gt_mesh_fn) else None
+    builder = reference.ReferenceBuilder(voxel) if est_mesh is not None and gt_mesh is None else None
+
+    stamps, poses, views, cams = [], [], [], []
+    for frame in source:
+        stamps.append(frame.timestamp)
+        poses.append(frame.gt_pose)
+        if frame.index in renders:
+            v = _load_view(renders[frame.index], frame)
+            if v is not None:
+                views.append(v)
+        if frame.gt_pose is None or frame.gt_depth is None:
+            continue
+        if builder is not None:
+            builder.add(frame.gt_depth, frame.intrinsics, frame.gt_pose)
+        if gt_mesh is not None:
+            small = resize_frame(frame, SourceOptions(max_side=CULL_MAX_SIDE))
+            cams.append(mesh_m.CullCamera(frame.gt_pose, small.intrinsics, small.gt_depth))
+
+    align = None
+    if traj is not None:
+        est_t, est_T = traj
+        j = _match(est_t, np.asarray(stamps, np.float64))
+        pairs = [(est_T[i], poses[k]) for i, k in enumerate(j) if poses[k] is not None]
+        if pairs:
+            align = _trajectory_metrics(rep, np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs]))
+    _image_metrics(rep, views, None if align is None else align.scale)
+
+    if est_mesh is not None and align is not None:
+        ref, kind = None, None
+        if gt_mesh is not None:
+            g = mesh_m.sample_mesh(gt_mesh, mesh_samples, seed=seed + 1)
+            ref, kind = g.subset(mesh_m.cull_observed(g.points, cams)), "gt_mesh"
+        elif builder is not None:
+            ref, kind = builder.build(), "gt_depth_points"
+        if ref is not None and len(ref.points):
+            est_mesh = est_mesh.copy()
+            est_mesh.apply_transform(_sim3_matrix(align))
+            m = mesh_m.mesh_metrics(mesh_m.sample_mesh(est_mesh, mesh_samples, seed=seed), ref, threshold)
+            rep.mesh = od.MeshReport(m.acc_m, m.comp_m, m.comp_ratio, m.normal_consistency, kind)
+    return rep

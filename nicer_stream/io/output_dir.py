@@ -1,0 +1,188 @@
+"""The output-directory contract: file names and the summary.json / eval.json schemas.
+
+A run writes into OUT/:
+- `trajectory.tum`  one line per input frame `t tx ty tz qx qy qz qw`, T_world_cam (io/trajectory.py)
+- `mesh.ply`        final mesh with vertex colours
+- `summary.json`    `Summary`
+- `eval.json`       `EvalReport` (when GT exists)
+- `renders/frame_NNNNNN.npz` (optional): `rgb` (H, W, 3) float32 [0, 1], `depth` (H, W)
+  float32 z-depth [m], `normal` (H, W, 3) camera frame, `frame_index` int.
+Scripts read these keys: keep them stable. Non-finite floats are written as null.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+from nicer_stream.errors import UserError
+
+TRAJECTORY_FILE = "trajectory.tum"
+MESH_FILE = "mesh.ply"
+SUMMARY_FILE = "summary.json"
+EVAL_FILE = "eval.json"
+RENDERS_DIR = "renders"
+DEPTH_PIXEL_RULE = "depth L1 on GT-valid pixels (gt > 0); rgb metrics on all pixels"
+
+
+def render_name(frame_index: int) -> str:
+    """File name of the render of frame `frame_index` inside RENDERS_DIR."""
+    return f"frame_{frame_index:06d}.npz"
+
+
+@dataclass
+class StageSeconds:
+    """Wall-clock seconds spent per stage."""
+
+    tracking: float = 0.0
+    mapping: float = 0.0
+    priors: float = 0.0
+    sinks: float = 0.0
+
+
+@dataclass
+class Bound:
+    """Scene bound: x_norm = (x_world - centre) / half_extent; `source` is 'config' or 'depth_prior'."""
+
+    centre: list[float]
+    half_extent: float
+    source: str
+
+    def __post_init__(self) -> None:
+        if self.source not in ("config", "depth_prior"):
+            raise UserError(f"bound source must be 'config' or 'depth_prior', got '{self.source}'")
+
+
+@dataclass
+class Summary:
+    """summary.json: what ran, how long, on what."""
+
+    frames: int
+    preset: str
+    device: str
+    priors: list[str]
+    """Prior provider names; 'oracle' when GT-derived priors were used."""
+    wall_s: float
+    stages_s: StageSeconds
+    seconds_per_frame: float
+    peak_rss_mb: float
+    versions: dict[str, str]
+    interrupted: bool
+    bound: Bound | None = None
+    notes: list[str] = field(default_factory=list)
+    source: str | None = None
+    """Source URI of the run (lets `nicer-stream eval` default --source)."""
+
+
+@dataclass
+class MeshReport:
+    """Mesh metrics in metres; `reference` is 'gt_mesh' or 'gt_depth_points' (None when not computed)."""
+
+    acc_m: float | None = None
+    comp_m: float | None = None
+    comp_ratio: float | None = None
+    normal_consistency: float | None = None
+    reference: str | None = None
+
+
+@dataclass
+class EvaluatedViews:
+    """Which renders were compared: frame indices, their image size, and the pixel rule."""
+
+    frame_indices: list[int] = field(default_factory=list)
+    width: int | None = None
+    height: int | None = None
+    pixel_rule: str = DEPTH_PIXEL_RULE
+
+
+@dataclass
+class EvalReport:
+    """eval.json. None (null) for anything whose inputs were missing."""
+
+    ate_rmse_m: float | None = None
+    ate_se3_rmse_m: float | None = None
+    rpe_trans_m: float | None = None
+    rpe_rot_deg: float | None = None
+    depth_l1_m: float | None = None
+    psnr_db: float | None = None
+    ssim: float | None = None
+    priors: list[str] = field(default_factory=list)
+    sim3_scale: float | None = None
+    evaluated_views: EvaluatedViews = field(default_factory=EvaluatedViews)
+    mesh: MeshReport = field(default_factory=MeshReport)
+
+
+def _finite_or_null(x: Any) -> Any:
+    """Recursively map non-finite floats to None (strict JSON has no inf/nan)."""
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    if isinstance(x, dict):
+        return {k: _finite_or_null(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_finite_or_null(v) for v in x]
+    return x
+
+
+def _write_json(path: Path, data: dict) -> None:
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(_finite_or_null(data), indent=2, allow_nan=False) + "\n")
+    tmp.replace(path)  # atomic: readers never see half a file
+
+
+def _read_json(path: Path) -> dict:
+    if not path.is_file():
+        raise UserError(f"{path} not found: point at an output directory written by 'nicer-stream run' or 'map'")
+    try:
+        data = json.loads(path.read_text())
+    except json.JSONDecodeError as e:
+        raise UserError(f"{path} is not valid JSON ({e.msg} at line {e.lineno}): rewrite or delete it") from None
+    if not isinstance(data, dict):
+        raise UserError(f"{path} must hold a JSON object: rewrite or delete it")
+    return data
+
+
+def _build(cls, data: dict, path: Path):
+    """cls(**known keys of data); UserError naming the missing required keys."""
+    names = {f.name for f in fields(cls)}
+    try:
+        return cls(**{k: v for k, v in data.items() if k in names})
+    except TypeError as e:
+        raise UserError(f"{path}: {e} (missing or malformed keys): rewrite the file") from None
+
+
+def write_summary(out_dir: str | Path, summary: Summary) -> Path:
+    """Write OUT/summary.json; returns its path."""
+    path = Path(out_dir) / SUMMARY_FILE
+    _write_json(path, asdict(summary))
+    return path
+
+
+def read_summary(out_dir: str | Path) -> Summary:
+    """Read OUT/summary.json (unknown keys ignored). Raises UserError if missing or malformed."""
+    path = Path(out_dir) / SUMMARY_FILE
+    data = _read_json(path)
+    if isinstance(data.get("stages_s"), dict):
+        data["stages_s"] = _build(StageSeconds, data["stages_s"], path)
+    if isinstance(data.get("bound"), dict):
+        data["bound"] = _build(Bound, data["bound"], path)
+    return _build(Summary, data, path)
+
+
+def write_eval(out_dir: str | Path, report: EvalReport) -> Path:
+    """Write OUT/eval.json; returns its path."""
+    path = Path(out_dir) / EVAL_FILE
+    _write_json(path, asdict(report))
+    return path
+
+
+def read_eval(out_dir: str | Path) -> EvalReport:
+    """Read OUT/eval.json. Raises UserError if missing or malformed."""
+    path = Path(out_dir) / EVAL_FILE
+    data = _read_json(path)
+    if isinstance(data.get("evaluated_views"), dict):
+        data["evaluated_views"] = _build(EvaluatedViews, data["evaluated_views"], path)
+    if isinstance(data.get("mesh"), dict):
+        data["mesh"] = _build(MeshReport, data["mesh"], path)
+    return _build(EvalReport, data, path)

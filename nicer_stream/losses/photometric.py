@@ -1,0 +1,31 @@
+"""RGB rendering loss (paper Eq. 7) and the masked mean shared by all per-ray losses.
+
+Per-ray losses use the L1 *norm* of the per-ray residual (sum over channels),
+averaged over the rays that count, as MonoSDF normalises its L1 sums.
+"""
+from __future__ import annotations
+
+import torch
+
+
+def masked_mean(values: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
+    """Mean of (N,) `values` over (N,) bool `mask` (all rays if None).
+
+    Returns a 0-dim tensor; an empty selection gives 0 (still attached to the
+    graph, so callers can sum it into a loss) instead of NaN. Rays outside the
+    mask get zero gradient even if their values are non-finite.
+    """
+    if mask is None:
+        return values.mean() if values.numel() else values.sum()
+    mask = mask.to(torch.bool)
+    kept = torch.where(mask, values, torch.zeros_like(values))
+    return kept.sum() / mask.sum().clamp_min(1).to(values.dtype)
+
+
+def rgb_l1(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
+    """Mean over rays of |pred - target|_1.
+
+    pred, target: (N, 3) float RGB in [0, 1]. mask: (N,) bool or None (all rays).
+    Returns a 0-dim tensor.
+    """
+    return masked_mean((pred - target).abs().sum(dim=-1), mask)

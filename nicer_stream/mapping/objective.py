@@ -1,0 +1,61 @@
+"""The mapping objective (Eq. 12) for one rendered ray batch."""
+from __future__ import annotations
+
+import torch
+
+from nicer_stream.config import LossConfig
+from nicer_stream.losses import (
+    LossTerms, bilinear_sample, eikonal_loss, flow_loss, mono_depth_loss, normal_loss, rgb_l1, warp_pixels, warping_loss,
+)
+from nicer_stream.mapping.ray_sampling import FrameRays
+from nicer_stream.render.renderer import RenderOutput
+
+
+def _mean(xs: list[torch.Tensor]) -> torch.Tensor | None:
+    return torch.stack(xs).mean() if xs else None
+
+
+def _warp_partners(fr: FrameRays, layout: list[FrameRays], k: int) -> list[FrameRays]:
+    """The k other window frames closest in time."""
+    others = [o for o in layout if o.frame.index != fr.frame.index]
+    return sorted(others, key=lambda o: abs(o.frame.index - fr.frame.index))[:k]
+
+
+def mapping_terms(out: RenderOutput, layout: list[FrameRays], cfg: LossConfig,
+                  fixed_scale_shift: tuple[float, float] | None = None,
+                  extra_sdf_grad: torch.Tensor | None = None) -> LossTerms:
+    """Unweighted loss terms. Per-frame terms (depth alignment, warping, flow) are
+    computed frame by frame and averaged."""
+    rgb, warp, flow, depth, n_l1, n_ang = [], [], [], [], [], []
+    for fr in layout:
+        sl = slice(fr.start, fr.stop)
+        f = fr.frame
+        target = f.rgb.reshape(-1, 3)[fr.pix]
+        rgb.append(rgb_l1(out.rgb[sl], target))
+        d = out.depth[sl]
+        if f.depth_prior is not None:
+            prior = f.depth_prior.reshape(-1)[fr.pix]
+            depth.append(mono_depth_loss(d, prior, (prior > 0) & torch.isfinite(prior), fixed_scale_shift))
+        if f.normal_prior is not None:
+            n_cam = out.normal[sl] @ fr.T_world_cam[:3, :3]  # R^T n in row form
+            l1, ang = normal_loss(n_cam, f.normal_prior.reshape(-1, 3)[fr.pix])
+            n_l1.append(l1)
+            n_ang.append(ang)
+        partners = _warp_partners(fr, layout, cfg.warp_frames) if (cfg.weights.warp > 0 or cfg.weights.flow > 0) else []
+        if partners:
+            uvs, valids, imgs = [], [], []
+            for p in partners:
+                uv_dst, _, valid = warp_pixels(fr.uv, d, f.intr, fr.T_world_cam, p.frame.intr, p.T_world_cam)
+                uvs.append(uv_dst)
+                valids.append(valid)
+                imgs.append(p.frame.rgb)
+                if p.frame.index in f.flows and cfg.weights.flow > 0:
+                    fl, fv = f.flows[p.frame.index]
+                    flow.append(flow_loss(fr.uv, uv_dst, fl.reshape(-1, 2)[fr.pix], valid & fv.reshape(-1)[fr.pix]))
+            if cfg.weights.warp > 0:
+                warp.append(warping_loss(target, imgs, uvs, valids))
+    grads = out.sdf_grad if extra_sdf_grad is None else torch.cat([out.sdf_grad, extra_sdf_grad])
+    return LossTerms(
+        rgb=_mean(rgb), warp=_mean(warp), flow=_mean(flow), depth=_mean(depth),
+        normal_l1=_mean(n_l1), normal_angular=_mean(n_ang), eikonal=eikonal_loss(grads),
+    )

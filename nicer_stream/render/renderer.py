@@ -1,0 +1,128 @@
+"""Render rays through a SceneModel: probe without gradient, then importance
+samples with gradient, VolSDF density with (locally adaptive) beta, Eqs. 5-6.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from nicer_stream.config import RenderConfig
+from nicer_stream.geometry.camera import pixel_grid, rays_world
+from nicer_stream.model.scene import SceneModel
+from nicer_stream.render.beta import BetaField
+from nicer_stream.render.density import laplace_density
+from nicer_stream.render.sampling import ray_box, sample_pdf, stratified
+from nicer_stream.render.volume import accumulate, render_weights
+from nicer_stream.types import Intrinsics
+
+
+@dataclass
+class RayBatch:
+    """R rays in world coordinates: origins (R, 3), unit dirs (R, 3), z_per_dist (R,) (= d_z in camera frame)."""
+
+    origins: torch.Tensor
+    dirs: torch.Tensor
+    z_per_dist: torch.Tensor
+
+
+@dataclass
+class RenderOutput:
+    """Per ray: rgb (R, 3), depth (R,) z-depth m, ray_dist (R,) m, normal (R, 3) world
+    (unnormalised weighted sum, Eq. 6), opacity (R,). Per sample (with gradient):
+    points (R*S, 3) normalised, sdf_grad (R*S, 3) d sdf / d x_norm."""
+
+    rgb: torch.Tensor
+    depth: torch.Tensor
+    ray_dist: torch.Tensor
+    normal: torch.Tensor
+    opacity: torch.Tensor
+    points: torch.Tensor
+    sdf_grad: torch.Tensor
+
+
+def _composite_deltas(t: torch.Tensor, far: torch.Tensor) -> torch.Tensor:
+    """(R, S) sorted sample distances -> interval lengths; the last runs to `far`."""
+    last = (far[:, None] - t[:, -1:]).clamp_min(1e-4)
+    return torch.cat([t[:, 1:] - t[:, :-1], last], dim=-1)
+
+
+def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderConfig,
+                use_fine: bool = True, jitter: bool = True) -> RenderOutput:
+    """Differentiable rendering of `rays` (w.r.t. scene parameters and ray origins/dirs)."""
+    b = model.bound
+    o = b.normalise(rays.origins)
+    d = rays.dirs
+    near, far = ray_box(o.detach(), d.detach())
+    near = near.clamp_min(cfg.near_m / b.half_extent)
+    far = torch.maximum(far, near + 1e-3)
+    r = o.shape[0]
+    with torch.no_grad():
+        t_probe = stratified(near, far, cfg.n_probe, jitter)
+        x_probe = (o[:, None] + t_probe[..., None] * d[:, None]).reshape(-1, 3)
+        sdf_p = model.geometry(x_probe, use_fine=use_fine).sdf.reshape(r, -1)
+        sig_p = laplace_density(sdf_p, beta(x_probe).reshape(sdf_p.shape) if beta.cfg.beta_mode == "adaptive" else beta(x_probe))
+        w_p = render_weights(sig_p, _composite_deltas(t_probe, far))
+        mids = (t_probe[:, 1:] + t_probe[:, :-1]) / 2
+        bins = torch.cat([near[:, None], mids, far[:, None]], -1)
+        t_imp = sample_pdf(bins, w_p, cfg.n_importance, jitter)
+        t_uni = stratified(near, far, cfg.n_uniform, jitter) if cfg.n_uniform > 0 else t_imp[:, :0]
+        t, _ = torch.sort(torch.cat([t_imp, t_uni], -1), -1)
+    x = (o[:, None] + t[..., None] * d[:, None]).reshape(-1, 3)
+    geo = model.geometry(x, use_fine=use_fine, with_grad=True)
+    normal = geo.grad / geo.grad.norm(dim=-1, keepdim=True).clamp_min(1e-6)
+    view = d[:, None].expand(r, t.shape[1], 3).reshape(-1, 3)
+    rgb_s = model.color(x, normal, view, geo.z_coarse, geo.z_fine)
+    s = t.shape[1]
+    bx = beta(x)
+    sigma = laplace_density(geo.sdf.reshape(r, s), bx.reshape(r, s) if bx.dim() else bx)
+    w = render_weights(sigma, _composite_deltas(t, far))
+    ray_dist = accumulate(w, t) * b.half_extent
+    return RenderOutput(
+        rgb=accumulate(w, rgb_s.reshape(r, s, 3)),
+        depth=ray_dist * rays.z_per_dist,
+        ray_dist=ray_dist,
+        normal=accumulate(w, normal.reshape(r, s, 3)),
+        opacity=w.sum(-1),
+        points=x,
+        sdf_grad=geo.grad,
+    )
+
+
+def rays_for_pixels(uv: torch.Tensor, intr: Intrinsics, T_world_cam: torch.Tensor) -> RayBatch:
+    """RayBatch through pixels uv (R, 2) of a camera at T_world_cam (4, 4)."""
+    o, d, zpd = rays_world(uv, intr, T_world_cam)
+    return RayBatch(o, d, zpd)
+
+
+@dataclass
+class RenderedImage:
+    """A whole view: rgb (H, W, 3) [0,1], depth (H, W) z-depth m, normal (H, W, 3) camera frame, opacity (H, W)."""
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    normal: np.ndarray
+    opacity: np.ndarray
+
+
+@torch.no_grad()
+def render_image(model: SceneModel, beta: BetaField, T_world_cam: torch.Tensor, intr: Intrinsics,
+                 cfg: RenderConfig, use_fine: bool = True) -> RenderedImage:
+    """Render a full view without autograd, in chunks (gradients are never needed here)."""
+    dev = T_world_cam.device
+    uv = pixel_grid(intr, device=dev)
+    outs = []
+    for i in range(0, uv.shape[0], cfg.chunk_rays):
+        rays = rays_for_pixels(uv[i:i + cfg.chunk_rays], intr, T_world_cam)
+        out = render_rays(model, beta, rays, cfg, use_fine=use_fine, jitter=False)
+        outs.append(torch.cat([out.rgb, out.depth[:, None], out.normal, out.opacity[:, None]], -1).detach())
+    img = torch.cat(outs).reshape(intr.height, intr.width, 8)
+    R = T_world_cam[:3, :3]
+    n_cam = img[..., 4:7] @ R  # world -> camera: R^T n, row-vector form
+    return RenderedImage(
+        rgb=img[..., :3].clamp(0, 1).cpu().numpy(),
+        depth=img[..., 3].cpu().numpy(),
+        normal=n_cam.cpu().numpy(),
+        opacity=img[..., 7].cpu().numpy(),
+    )

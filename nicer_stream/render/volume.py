@@ -1,0 +1,24 @@
+"""Volume-rendering weights and accumulation (Eqs. 5-6)."""
+from __future__ import annotations
+
+import torch
+
+
+def render_weights(sigma: torch.Tensor, deltas: torch.Tensor) -> torch.Tensor:
+    """(R, S) densities and interval lengths -> (R, S) weights T_i * alpha_i.
+
+    T_i = exp(-sum_{j<i} sigma_j delta_j): the cumsum form, whose backward is far
+    cheaper on CPU than that of cumprod(1 - alpha).
+    """
+    tau = sigma * deltas
+    alpha = 1 - torch.exp(-tau)
+    acc = torch.cumsum(tau, dim=-1)
+    trans = torch.exp(-torch.cat([torch.zeros_like(acc[:, :1]), acc[:, :-1]], dim=-1))
+    return trans * alpha
+
+
+def accumulate(weights: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
+    """(R, S) weights, (R, S, C) or (R, S) values -> (R, C) or (R,) sums."""
+    if values.dim() == 2:
+        return (weights * values).sum(-1)
+    return (weights[..., None] * values).sum(-2)

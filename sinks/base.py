@@ -1,0 +1,127 @@
+"""The `Sink` interface (where a run's results are written) and the array
+conversions every sink shares. Conventions: docs/conventions.md.
+
+Poses are `T_world_cam` (4, 4) camera-to-world, metres; images are
+(H, W, 3) float32 RGB in [0, 1]; depth is z-depth in metres (0 = invalid);
+normals are unit vectors in the camera frame (OpenCV axes).
+A sink is safe to close twice and after an exception; it flushes regularly
+so that what was already logged survives a crash.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import Mapping
+
+import cv2
+import numpy as np
+import torch
+
+from nicer_stream.geometry.se3 import pose_to_tum
+from nicer_stream.types import Intrinsics
+
+
+class Sink(ABC):
+    """Receives per-frame results, trajectories, meshes and metrics."""
+
+    @abstractmethod
+    def log_pose(self, index: int, timestamp: float, T_world_cam: np.ndarray,
+                 gt_T_world_cam: np.ndarray | None = None, timestamp_ns: int | None = None) -> None:
+        """Camera pose (4, 4) of frame `index` at `timestamp` seconds, without images.
+        `timestamp_ns`, when the source has it, is the exact sensor time and wins over `timestamp`."""
+
+    @abstractmethod
+    def log_frame(self, index: int, timestamp: float, rgb: np.ndarray, intrinsics: Intrinsics,
+                  T_world_cam: np.ndarray, depth: np.ndarray | None = None,
+                  normal: np.ndarray | None = None, gt_T_world_cam: np.ndarray | None = None,
+                  timestamp_ns: int | None = None) -> None:
+        """One frame: pose plus rgb (H, W, 3) float32 [0, 1], optional z-depth (H, W) metres
+        and camera-frame normals (H, W, 3). `timestamp_ns` as in `log_pose`."""
+
+    @abstractmethod
+    def log_trajectory(self, positions: np.ndarray, name: str = "estimate",
+                       rotations: np.ndarray | None = None) -> None:
+        """Camera centres (N, 3) world metres as one polyline called `name` ("estimate", "gt").
+        `rotations` (N, 3, 3) R_world_cam, if known, lets pose-aware formats keep orientations."""
+
+    @abstractmethod
+    def log_mesh(self, vertices: np.ndarray, faces: np.ndarray,
+                 vertex_colors: np.ndarray | None = None, normals: np.ndarray | None = None) -> None:
+        """Mesh: vertices (V, 3) world metres, faces (F, 3) int, colours (V, 3) uint8 or
+        float [0, 1], normals (V, 3). Expensive: log rarely."""
+
+    @abstractmethod
+    def log_beta_voxels(self, centres: np.ndarray, beta: np.ndarray, voxel_size: float) -> None:
+        """Voxel centres (N, 3) world metres with their density sharpness `beta` (N,)."""
+
+    @abstractmethod
+    def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
+        """Named metrics (name -> value) at frame `index`."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Finalise outputs. Idempotent; must work after an exception."""
+
+    def __enter__(self) -> "Sink":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def pose_tq(T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(4, 4) pose -> translation (3,) and unit quaternion (qx, qy, qz, qw), qw >= 0, float64."""
+    row = pose_to_tum(torch.as_tensor(np.asarray(T_world_cam, dtype=np.float64))).numpy()
+    return row[:3], row[3:]
+
+
+def rotations_to_quats(rotations: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) rotations -> (N, 4) quaternions (qx, qy, qz, qw)."""
+    T = np.zeros((len(rotations), 4, 4))
+    T[:, :3, :3] = rotations
+    T[:, 3, 3] = 1.0
+    return pose_to_tum(torch.as_tensor(T)).numpy()[:, 3:]
+
+
+def rgb_to_u8(rgb: np.ndarray) -> np.ndarray:
+    """(H, W, 3) float [0, 1] (or already uint8) -> (H, W, 3) uint8, clipped."""
+    if rgb.dtype == np.uint8:
+        return rgb
+    return (np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+
+
+def normal_to_u8(normal: np.ndarray) -> np.ndarray:
+    """(H, W, 3) unit normals in [-1, 1] -> (H, W, 3) uint8 image of (n + 1) / 2."""
+    return rgb_to_u8((np.asarray(normal, dtype=np.float32) + 1.0) * 0.5)
+
+
+def colors_to_u8(colors: np.ndarray | None) -> np.ndarray | None:
+    """(V, 3|4) colours, uint8 or float [0, 1] -> (V, 3|4) uint8 (None passes through)."""
+    if colors is None:
+        return None
+    colors = np.asarray(colors)
+    return colors.astype(np.uint8) if np.issubdtype(colors.dtype, np.integer) else rgb_to_u8(colors)
+
+
+def beta_colors(beta: np.ndarray) -> np.ndarray:
+    """(N,) beta -> (N, 3) uint8 RGB, viridis over the min..max range (constant beta: mid colour)."""
+    beta = np.asarray(beta, dtype=np.float64).reshape(-1)
+    lo, hi = (beta.min(), beta.max()) if beta.size else (0.0, 1.0)
+    t = (beta - lo) / (hi - lo) if hi > lo else np.full_like(beta, 0.5)
+    lut = cv2.applyColorMap(np.arange(256, dtype=np.uint8)[:, None], cv2.COLORMAP_VIRIDIS)[:, 0, ::-1]
+    return lut[np.round(t * 255).astype(np.int64)]
+
+
+def encode_jpeg(rgb: np.ndarray, quality: int = 90) -> bytes:
+    """(H, W, 3) float [0, 1] or uint8 RGB -> JPEG bytes."""
+    ok, buf = cv2.imencode(".jpg", cv2.cvtColor(rgb_to_u8(rgb), cv2.COLOR_RGB2BGR),
+                           [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:  # pragma: no cover - cv2 only fails on empty images
+        raise ValueError(f"cannot JPEG-encode an image of shape {rgb.shape}")
+    return buf.tobytes()
+
+
+def seconds_to_ns(timestamp: float, timestamp_ns: int | None = None) -> int:
+    """Seconds -> integer nanoseconds, or `timestamp_ns` when given (exact); clamped at 0
+    because MCAP times are unsigned."""
+    ns = int(timestamp_ns) if timestamp_ns is not None else int(round(float(timestamp) * 1e9))
+    return max(0, ns)

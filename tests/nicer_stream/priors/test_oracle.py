@@ -1,0 +1,108 @@
+"""The labelled oracle priors: affine-corrupted GT depth, GT normals, GT flow."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from nicer_stream.errors import UserError
+from nicer_stream.priors.normals_from_depth import view_rays
+from nicer_stream.priors.oracle import OracleDepthNormal, OracleFlow, fill_invalid_nearest, flow_from_depth_pose
+from nicer_stream.types import Frame, Intrinsics
+
+
+def test_oracle_depth_is_affine_in_gt_depth(replica_small):
+    provider = OracleDepthNormal(seed=3)
+    scales = []
+    for frame in replica_small:
+        out = provider.predict(frame)
+        gt = fill_invalid_nearest(frame.gt_depth)
+        assert out.depth.shape == gt.shape and out.depth.dtype == np.float32
+        A = np.stack([gt.ravel(), np.ones(gt.size)], 1).astype(np.float64)
+        (s, t), *_ = np.linalg.lstsq(A, out.depth.ravel().astype(np.float64), rcond=None)
+        rel_rms = np.sqrt(np.mean((A @ [s, t] - out.depth.ravel()) ** 2)) / np.median(out.depth)
+        assert 0.45 < s < 2.1 and rel_rms < 0.05, (s, t, rel_rms)
+        assert rel_rms > 1e-4  # it is corrupted, not a copy
+        scales.append(s)
+        np.testing.assert_array_equal(provider.predict(frame).depth, out.depth)  # deterministic per frame
+    assert np.ptp(scales) > 0.01  # a different scale per frame
+
+
+def test_oracle_normals_unit_and_facing_camera(replica_small):
+    frame = replica_small[0]
+    n = OracleDepthNormal().predict(frame).normal
+    assert n.shape == (frame.height, frame.width, 3) and n.dtype == np.float32
+    np.testing.assert_allclose(np.linalg.norm(n, axis=-1), 1.0, atol=1e-5)
+    assert ((n * view_rays(frame.intrinsics)).sum(-1) < 0).all()
+
+
+def _frame(index, depth, T, intr) -> Frame:
+    rgb = np.zeros((intr.height, intr.width, 3), np.float32)
+    return Frame(index=index, timestamp=0.0, rgb=rgb, intrinsics=intr, gt_pose=T, gt_depth=depth)
+
+
+INTR = Intrinsics(fx=100.0, fy=100.0, cx=15.5, cy=11.5, width=32, height=24)
+
+
+def test_oracle_flow_pure_translation_by_hand():
+    depth = np.full((24, 32), 2.0, np.float32)
+    depth[:, 16:] = 4.0
+    T_dst = np.eye(4)
+    T_dst[0, 3] = 0.1  # destination camera 10 cm to the right: points move left by fx * 0.1 / z
+    fp = OracleFlow().flow(_frame(0, depth, np.eye(4), INTR), _frame(1, depth, T_dst, INTR))
+    assert (fp.src_index, fp.dst_index) == (0, 1)
+    np.testing.assert_allclose(fp.flow[5, 10], [-5.0, 0.0], atol=1e-4)  # z = 2 m
+    np.testing.assert_allclose(fp.flow[7, 20], [-2.5, 0.0], atol=1e-4)  # z = 4 m
+    # Out of image: u - 5 < -0.5 for u <= 4 (z = 2 m side).
+    assert not fp.valid[:, :5].any() and fp.valid[:, 5:16].all()
+
+
+def test_oracle_flow_forward_motion_by_hand():
+    depth = np.full((24, 32), 2.0, np.float32)
+    T_dst = np.eye(4)
+    T_dst[2, 3] = 0.5  # move 0.5 m forward: z 2 -> 1.5
+    flow, valid = flow_from_depth_pose(depth, np.eye(4), INTR, T_dst, INTR)
+    u, v = 25, 3
+    x, y = (u - INTR.cx) / INTR.fx * 2.0, (v - INTR.cy) / INTR.fy * 2.0
+    expected = [INTR.fx * x / 1.5 + INTR.cx - u, INTR.fy * y / 1.5 + INTR.cy - v]
+    np.testing.assert_allclose(flow[v, u], expected, atol=1e-4)
+    assert valid[v, u]
+
+
+def test_oracle_flow_marks_occlusion():
+    depth = np.full((24, 32), 2.0, np.float32)
+    dst_depth = depth.copy()
+    dst_depth[8:16, 8:16] = 1.0  # something closer in front, in the destination view only
+    flow, valid = flow_from_depth_pose(depth, np.eye(4), INTR, np.eye(4), INTR, dst_depth)
+    np.testing.assert_allclose(flow, 0.0, atol=1e-5)
+    assert not valid[8:16, 8:16].any() and valid[:8].all() and valid[16:].all()
+
+
+def test_oracle_flow_matches_real_images(replica_small):
+    """Warping frame 1 by the oracle flow 0 -> 1 reproduces frame 0 much better than no flow."""
+    f0, f1 = replica_small[:2]
+    fp = OracleFlow().flow(f0, f1)
+    h, w = f0.height, f0.width
+    x = (np.arange(w)[None, :] + fp.flow[..., 0]).astype(np.float32)
+    y = (np.arange(h)[:, None] + fp.flow[..., 1]).astype(np.float32)
+    warped = cv2.remap(f1.rgb, x, y, cv2.INTER_LINEAR)
+    m = fp.valid
+    err_flow = np.abs(warped - f0.rgb)[m].mean()
+    err_none = np.abs(f1.rgb - f0.rgb)[m].mean()
+    assert m.mean() > 0.8 and err_flow < 0.5 * err_none, (err_flow, err_none)
+
+
+def test_oracle_without_ground_truth_is_a_one_line_user_error(replica_small):
+    bare = replica_small[0].without_ground_truth()
+    for call in (lambda: OracleDepthNormal().predict(bare), lambda: OracleFlow().flow(bare, bare)):
+        with pytest.raises(UserError) as e:
+            call()
+        msg = str(e.value)
+        assert "oracle" in msg and "ground truth" in msg and "\n" not in msg
+
+
+def test_fill_invalid_nearest():
+    d = np.array([[0.0, 1.0, 0.0, 0.0, 5.0]], np.float32)
+    np.testing.assert_array_equal(fill_invalid_nearest(d), [[1.0, 1.0, 1.0, 5.0, 5.0]])
+    with pytest.raises(UserError):
+        fill_invalid_nearest(np.zeros((2, 2), np.float32))
