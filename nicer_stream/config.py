@@ -142,6 +142,8 @@ class MappingConfig:
     """Size of the recent-keyframe pool."""
     eikonal_points: int = 1024
     """Extra uniformly sampled points for the Eikonal term per iteration."""
+    batch_iters: int = 2000
+    """Iterations of `nicer-stream map` (all frames in one window, known poses)."""
 
 
 @dataclass(frozen=True)
@@ -168,8 +170,9 @@ class TrackingConfig:
 class BoundConfig:
     """Scene bound used to normalise into [-1, 1]^3 (never from ground truth)."""
 
-    mode: str = "depth_prior"
-    """'depth_prior' (first frame's scaled depth prior plus margin) or 'config'."""
+    mode: str = "auto"
+    """'auto' (SLAM: the first frame's scaled depth prior plus margin; mapping with known
+    poses: a cube of `half_extent` in front of the cameras) or 'config' (centre, half_extent)."""
     centre: tuple[float, float, float] = (0.0, 0.0, 0.0)
     """Bound centre in the world (first camera) frame, metres, for mode 'config'."""
     half_extent: float = 4.0
@@ -226,7 +229,7 @@ def fast() -> SlamConfig:
         max_side=320,
         model=ModelConfig(color_levels=12, color_res_max=512, color_log2_table=17),
         render=RenderConfig(n_probe=48, n_importance=16, n_uniform=4, beta_count_weight=40.0),
-        mapping=MappingConfig(iters=60, first_iters=300, rays=1024, eikonal_points=256),
+        mapping=MappingConfig(iters=60, first_iters=300, rays=1024, eikonal_points=256, batch_iters=500),
         tracking=TrackingConfig(iters=30, rays=512, lr=3e-3),
         mesh=MeshConfig(resolution=192),
     )

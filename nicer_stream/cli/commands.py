@@ -3,19 +3,16 @@ from __future__ import annotations
 
 import typer
 
-from nicer_stream.cli.common import not_built
 
 
 def register(app: typer.Typer) -> None:
-    @app.command("run")
-    def run() -> None:
-        """Full SLAM on a source: trajectory, mesh, recording (issue #4)."""
-        not_built("run", 4)
+    from nicer_stream.cli.run_cmd import run_command
 
-    @app.command("map")
-    def map_() -> None:
-        """Mapping with known poses (issue #3)."""
-        not_built("map", 3)
+    app.command("run")(run_command)
+
+    from nicer_stream.cli.map_cmd import map_command
+
+    app.command("map")(map_command)
 
     @app.command("eval")
     def eval_(

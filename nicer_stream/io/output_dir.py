@@ -42,17 +42,21 @@ class StageSeconds:
     sinks: float = 0.0
 
 
+BOUND_SOURCES = ("config", "depth_prior", "cameras")
+
+
 @dataclass
 class Bound:
-    """Scene bound: x_norm = (x_world - centre) / half_extent; `source` is 'config' or 'depth_prior'."""
+    """Scene bound: x_norm = (x_world - centre) / half_extent; `source` is 'config', 'depth_prior'
+    or 'cameras' (known-pose mapping: a cube in front of the given cameras); never ground truth."""
 
     centre: list[float]
     half_extent: float
     source: str
 
     def __post_init__(self) -> None:
-        if self.source not in ("config", "depth_prior"):
-            raise UserError(f"bound source must be 'config' or 'depth_prior', got '{self.source}'")
+        if self.source not in BOUND_SOURCES:
+            raise UserError(f"bound source must be one of {', '.join(BOUND_SOURCES)}, got '{self.source}'")
 
 
 @dataclass
@@ -74,6 +78,12 @@ class Summary:
     notes: list[str] = field(default_factory=list)
     source: str | None = None
     """Source URI of the run (lets `nicer-stream eval` default --source)."""
+    intrinsics: dict | None = None
+    """{fx, fy, cx, cy, width, height} of the processed images (used by `convert`)."""
+    config: dict | None = None
+    """The full configuration the run used."""
+    stats: dict = field(default_factory=dict)
+    """Run-specific counters (iterations, tracking losses, dropped frames, ...)."""
 
 
 @dataclass

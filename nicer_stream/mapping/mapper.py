@@ -40,7 +40,8 @@ class Mapper:
         if beta.cfg.beta_mode == "global":
             groups["beta"] = {"params": [beta.log_beta], "lr": cfg.mapping.lr}
         self.group_names = list(groups)
-        self.opt = torch.optim.Adam(list(groups.values()), betas=(0.9, 0.99), eps=1e-15)
+        # fused Adam: one kernel over the ~20M grid parameters, ~5x faster than the default on CPU.
+        self.opt = torch.optim.Adam(list(groups.values()), betas=(0.9, 0.99), eps=1e-15, fused=True)
         self.gen = torch.Generator().manual_seed(seed)
 
     def _frozen(self, frac: float) -> set[str]:
@@ -61,9 +62,10 @@ class Mapper:
 
     def optimise(self, frames: list[MapFrame], poses: dict[int, torch.Tensor], iters: int,
                  ba_indices: set[int] = frozenset(), fixed_scale_shift: tuple[float, float] | None = None,
-                 progress=None) -> MappingStats:
+                 progress=None, time_budget_s: float | None = None) -> MappingStats:
         """Run `iters` iterations over `frames`; poses of `ba_indices` are refined in the
-        last stage and written back into `poses`."""
+        last stage and written back into `poses`. With `time_budget_s`, the iteration
+        count is cut after 3 timed iterations so the schedule fits the budget."""
         import time
 
         t0 = time.perf_counter()
@@ -73,7 +75,11 @@ class Mapper:
         pose_opt = torch.optim.Adam(list(xi.values()), lr=m.lr_pose) if xi else None
         terms = LossTerms()
         loss = torch.zeros(())
-        for it in range(iters):
+        it = 0
+        while it < iters:
+            if time_budget_s is not None and it == 3:
+                per_iter = (time.perf_counter() - t0) / 3
+                iters = max(4, min(iters, int(time_budget_s / per_iter)))
             frac = it / max(iters, 1)
             use_fine = frac >= m.fine_start
             ba = pose_opt is not None and frac >= m.ba_start
@@ -97,9 +103,10 @@ class Mapper:
                 pose_opt.step()
             self.beta.count(out.points.detach())
             if progress is not None:
-                progress(it, float(loss))
+                progress(it, iters, float(loss.detach()))
+            it += 1
         with torch.no_grad():
             for i, x in xi.items():
                 poses[i] = poses[i] @ se3_exp(x.detach())
-        vals = {k: float(v) for k, v in vars(terms).items() if v is not None}
-        return MappingStats(iters, float(loss), vals, time.perf_counter() - t0)
+        vals = {k: float(v.detach()) for k, v in vars(terms).items() if v is not None}
+        return MappingStats(iters, float(loss.detach()), vals, time.perf_counter() - t0)

@@ -2,7 +2,8 @@
 
 Loaded with `AutoImageProcessor` + `AutoModelForDepthEstimation` from a model id
 (default `depth-anything/Depth-Anything-V2-Small-hf`, needs internet the first
-time) or a local directory saved with `save_pretrained`.
+time; offline, HF_HUB_OFFLINE=1 fails at once instead of after the hub
+client's retries) or a local directory saved with `save_pretrained`.
 
 Depth Anything predicts relative *inverse* depth (disparity, affine-invariant:
 larger = nearer). We turn it into a depth-like prior: the disparity is

@@ -28,7 +28,8 @@ class BetaField(nn.Module):
         self.register_buffer("counts", torch.zeros(n * n * n, dtype=torch.float64))
         self.log_beta = nn.Parameter(torch.tensor(float(cfg.beta_fixed)).log(), requires_grad=cfg.beta_mode == "global")
 
-    def _voxel(self, x: torch.Tensor) -> torch.Tensor:
+    def voxel_index(self, x: torch.Tensor) -> torch.Tensor:
+        """(..., 3) normalised points -> (...) flat counter index."""
         n = self.cfg.beta_voxels
         i = ((x.detach().clamp(-1, 1 - 1e-6) + 1) / 2 * n).long()
         return (i[..., 0] * n + i[..., 1]) * n + i[..., 2]
@@ -39,13 +40,13 @@ class BetaField(nn.Module):
             return x.new_tensor(self.cfg.beta_fixed)
         if self.cfg.beta_mode == "global":
             return self.log_beta.exp().to(x.dtype)
-        c = self.counts[self._voxel(x)].to(x.dtype)
+        c = self.counts[self.voxel_index(x)].to(x.dtype)
         return adaptive_beta(c, self.cfg.beta_c0, self.cfg.beta_c1, self.cfg.beta_c2)
 
     @torch.no_grad()
     def count(self, x: torch.Tensor) -> None:
         """Add mapping samples x (..., 3) to the voxel counter."""
-        idx = self._voxel(x).reshape(-1)
+        idx = self.voxel_index(x).reshape(-1)
         w = torch.full(idx.shape, self.cfg.beta_count_weight, dtype=self.counts.dtype, device=idx.device)
         self.counts.index_add_(0, idx, w)
 

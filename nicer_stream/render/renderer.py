@@ -72,12 +72,18 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
     x = (o[:, None] + t[..., None] * d[:, None]).reshape(-1, 3)
     geo = model.geometry(x, use_fine=use_fine, with_grad=True)
     normal = geo.grad / geo.grad.norm(dim=-1, keepdim=True).clamp_min(1e-6)
-    view = d[:, None].expand(r, t.shape[1], 3).reshape(-1, 3)
-    rgb_s = model.color(x, normal, view, geo.z_coarse, geo.z_fine)
     s = t.shape[1]
     bx = beta(x)
     sigma = laplace_density(geo.sdf.reshape(r, s), bx.reshape(r, s) if bx.dim() else bx)
     w = render_weights(sigma, _composite_deltas(t, far))
+    view = d[:, None].expand(r, s, 3).reshape(-1, 3)
+    if torch.is_grad_enabled():
+        rgb_s = model.color(x, normal, view, geo.z_coarse, geo.z_fine)
+    else:
+        # Inference: colour only where it can matter (weights computed first).
+        keep = (w.reshape(-1) > 1e-4).nonzero()[:, 0]
+        rgb_s = x.new_zeros(x.shape[0], 3)
+        rgb_s[keep] = model.color(x[keep], normal[keep], view[keep], geo.z_coarse[keep], geo.z_fine[keep])
     ray_dist = accumulate(w, t) * b.half_extent
     return RenderOutput(
         rgb=accumulate(w, rgb_s.reshape(r, s, 3)),

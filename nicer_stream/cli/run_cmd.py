@@ -1,0 +1,56 @@
+"""`nicer-stream run`: full SLAM on a source."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from nicer_stream.cli.common import parse_intrinsics, user_errors
+
+
+def run_command(
+    source: str = typer.Option("synthetic:room?frames=60", "--source", help="Source URI: replica:PATH, tum:PATH, 7scenes:PATH, folder:PATH, video:FILE, mcap:FILE[?topic=T], synthetic:NAME."),
+    out: Path = typer.Option(Path("runs/latest"), "--out", help="Output directory."),
+    preset: str = typer.Option("fast", "--preset", help="fast (2-core CPU) or paper."),
+    config: str = typer.Option(None, "--config", help="A .toml/.json file overriding preset fields."),
+    priors: str = typer.Option("none", "--priors", help="Depth/normal priors: none, oracle (GT-derived, evaluation only), cache:DIR, omnidata, depth-anything."),
+    flow: str = typer.Option(None, "--flow", help="Flow prior: dis, oracle, none, cache:DIR (default: oracle with oracle priors, else dis)."),
+    sink: list[str] = typer.Option([], "--sink", help="rerun (viewer), rerun:FILE.rrd, mcap:FILE.mcap; repeatable. A bare 'rerun' with no viewer writes OUT/recording.rrd."),
+    max_frames: int = typer.Option(None, "--max-frames"),
+    stride: int = typer.Option(1, "--stride"),
+    start: int = typer.Option(0, "--start"),
+    max_side: int = typer.Option(None, "--max-side", help="Resize so the longer side is at most N pixels (default: preset)."),
+    intrinsics: str = typer.Option(None, "--intrinsics", help="fx,fy,cx,cy at the original image size."),
+    realtime: bool = typer.Option(False, "--realtime", help="Play the log at its recorded rate, dropping frames SLAM cannot keep up with."),
+    device: str = typer.Option("cpu", "--device", help="torch device, e.g. cpu or cuda."),
+) -> None:
+    """Track every frame and map keyframes; writes trajectory.tum, mesh.ply, summary.json (+ eval.json with GT)."""
+    user_errors(_run)(source, out, preset, config, priors, flow, sink, max_frames, stride, start, max_side, intrinsics,
+                      realtime, device)
+
+
+def _resolve_sinks(sinks: list[str], out: Path) -> tuple[str, ...]:
+    """A bare 'rerun' becomes a file in OUT when no viewer can be spawned (headless)."""
+    import os
+    import shutil
+
+    res = []
+    for s in sinks:
+        if s == "rerun" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) and not shutil.which("rerun-viewer"):
+            s = f"rerun:{out / 'recording.rrd'}"
+            typer.echo(f"no display for a Rerun viewer: recording to {s[6:]}", err=True)
+        res.append(s)
+    return tuple(res)
+
+
+def _run(source, out, preset, config, priors, flow, sinks, max_frames, stride, start, max_side, intrinsics, realtime,
+         device) -> None:
+    from nicer_stream.cli.run_report import evaluate_and_print
+    from nicer_stream.runtime.slam_run import RunRequest, run_slam
+    from sources.base import SourceOptions
+
+    opts = SourceOptions(start=start, stride=stride, max_frames=max_frames, max_side=max_side,
+                         intrinsics=parse_intrinsics(intrinsics))
+    out_dir = run_slam(RunRequest(source=source, out_dir=out, priors=priors, flow=flow, preset=preset, config_file=config,
+                                  sinks=_resolve_sinks(sinks, out), device=device, realtime=realtime, source_opts=opts))
+    evaluate_and_print(out_dir, source, opts)

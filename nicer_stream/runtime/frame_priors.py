@@ -1,0 +1,28 @@
+"""Building MapFrames (observations + priors) from source frames."""
+from __future__ import annotations
+
+import torch
+
+from nicer_stream.errors import UserError
+from nicer_stream.mapping.map_frame import MapFrame
+from nicer_stream.priors import PriorEngine, make_depth_normal_provider, make_flow_provider
+from nicer_stream.types import Frame
+
+
+def make_engine(priors: str, flow: str | None, device) -> PriorEngine:
+    """Depth/normal provider `priors`; flow defaults to `oracle` with oracle priors, else `dis`."""
+    flow = flow or ("oracle" if priors == "oracle" else "dis")
+    return PriorEngine(make_depth_normal_provider(priors, device), make_flow_provider(flow, device))
+
+
+def provider_names(engine: PriorEngine) -> list[str]:
+    return [engine.depth_normal.name, engine.flow_provider.name]
+
+
+def map_frame(frame: Frame, engine: PriorEngine, flow_to: list[Frame], device) -> MapFrame:
+    """Priors for `frame` (the oracle provider may read its GT) -> a MapFrame with GT removed."""
+    try:
+        pri = engine.priors(frame, flow_to)
+    except UserError:
+        raise
+    return MapFrame.from_frame(frame.without_ground_truth(), pri, torch.device(device))

@@ -1,0 +1,111 @@
+"""`nicer-stream map`: fit the scene to frames whose poses are known (GT or a TUM file)."""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from nicer_stream import config as config_mod
+from nicer_stream.errors import UserError
+from nicer_stream.io.trajectory import read_tum
+from nicer_stream.mapping.mapper import Mapper
+from nicer_stream.model.scene import SceneModel
+from nicer_stream.render.beta import BetaField
+from nicer_stream.runtime.bound_estimate import bound_from_cameras, bound_from_config
+from nicer_stream.runtime.frame_priors import make_engine, map_frame, provider_names
+from nicer_stream.runtime.progress import Progress
+from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_trajectory
+from nicer_stream.runtime.scene_export import save_render, scene_mesh
+from nicer_stream.runtime.stage_timer import StageTimer
+from nicer_stream.render.renderer import render_image
+from sources import open_source
+from sources.base import SourceOptions
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class MapRequest:
+    """What `nicer-stream map` was asked to do."""
+
+    source: str
+    out_dir: Path
+    poses: str = "gt"
+    priors: str = "oracle"
+    flow: str | None = None
+    preset: str = "fast"
+    config_file: str | None = None
+    iters: int | None = None
+    minutes: float | None = None
+    device: str = "cpu"
+    render_every: int = 5
+    source_opts: SourceOptions = SourceOptions()
+
+
+def _poses(frames, spec: str) -> np.ndarray:
+    if spec == "gt":
+        missing = [f.index for f in frames if f.gt_pose is None]
+        if missing:
+            raise UserError(f"--poses gt: the source has no ground-truth pose for frames {missing[:5]}: pass --poses FILE.tum")
+        return np.stack([f.gt_pose for f in frames])
+    _, poses = read_tum(spec)
+    if len(poses) < len(frames):
+        raise UserError(f"--poses {spec}: {len(poses)} poses for {len(frames)} frames: one line per frame is needed")
+    return poses[: len(frames)]
+
+
+def run_map(req: MapRequest) -> Path:
+    cfg = config_mod.load(req.preset, req.config_file)
+    timer = StageTimer()
+    torch.manual_seed(cfg.seed)
+    opts = req.source_opts
+    if opts.max_side is None and opts.scale is None and cfg.max_side is not None:
+        opts = SourceOptions(**{**vars(opts), "max_side": cfg.max_side})
+    source = open_source(req.source, opts)
+    frames = list(source)
+    if not frames:
+        raise UserError(f"source {req.source} gave no frames")
+    poses_np = _poses(frames, req.poses)
+    out = Path(req.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    engine = make_engine(req.priors, req.flow, req.device)
+    with timer.stage("priors"):
+        mfs = [map_frame(f, engine, [frames[j] for j in (i - 1, i + 1) if 0 <= j < len(frames)], req.device)
+               for i, f in enumerate(frames)]
+    bound = bound_from_config(cfg.bound) if cfg.bound.mode == "config" else bound_from_cameras(poses_np, cfg.bound)
+    model = SceneModel(cfg.model, bound).to(req.device)
+    beta = BetaField(cfg.render).to(req.device)
+    poses = {f.index: torch.tensor(poses_np[i], dtype=torch.float32, device=req.device) for i, f in enumerate(frames)}
+    iters = req.iters or cfg.mapping.batch_iters
+    interrupted = False
+    stats = None
+    try:
+        with timer.stage("mapping"):
+            stats = Mapper(model, beta, cfg, cfg.seed).optimise(
+                mfs, poses, iters, progress=Progress("mapping"),
+                time_budget_s=req.minutes * 60 if req.minutes else None)
+    except KeyboardInterrupt:
+        interrupted = True
+        log.warning("interrupted: writing the outputs of the mapping so far")
+    intr = frames[0].intrinsics
+    with timer.stage("sinks"):
+        views = sorted(set(range(0, len(frames), max(1, req.render_every))) | {len(frames) - 1})
+        for k, i in enumerate(views):
+            view = render_image(model, beta, poses[frames[i].index], intr, cfg.render)
+            save_render(out, frames[i].index, view, frames[i].rgb)
+            print(f"render {k + 1}/{len(views)} (frame {frames[i].index})", flush=True)
+        write_trajectory(out, [f.timestamp for f in frames], list(poses_np))
+        write_mesh(out, scene_mesh(model, beta, poses_np, intr, cfg.mesh.resolution))
+    write_summary(
+        out, frames=len(frames), preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
+        interrupted=interrupted, bound=bound, source=req.source,
+        notes=[f"mapping with known poses ({req.poses}); scene bound from {bound.source}"],
+        intrinsics={k: getattr(intr, k) for k in ("fx", "fy", "cx", "cy", "width", "height")},
+        config=config_mod.to_dict(cfg),
+        stats={"iterations": stats.iters if stats else 0, "final_loss": stats.loss if stats else None,
+               "loss_terms": stats.terms if stats else {}},
+    )
+    return out

@@ -1,0 +1,57 @@
+"""Turn a fitted scene into files: renders (npz + png), the mesh."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+import trimesh
+
+from nicer_stream.config import SlamConfig
+from nicer_stream.io.output_dir import RENDERS_DIR, render_name
+from nicer_stream.mesh import cull_to_frustums, extract_mesh
+from nicer_stream.model.scene import SceneModel
+from nicer_stream.render.beta import BetaField
+from nicer_stream.render.renderer import RenderedImage, render_image
+from nicer_stream.types import Intrinsics
+
+
+def save_render(out_dir: Path, index: int, view: RenderedImage, observed_rgb: np.ndarray | None = None) -> Path:
+    """Write renders/frame_NNNNNN.npz (rgb, depth, normal) and a PNG (render | input | depth | normal)."""
+    d = Path(out_dir) / RENDERS_DIR
+    d.mkdir(parents=True, exist_ok=True)
+    path = d / render_name(index)
+    np.savez_compressed(path, rgb=view.rgb.astype(np.float32), depth=view.depth.astype(np.float32),
+                        normal=view.normal.astype(np.float32), frame_index=np.int64(index))
+    depth = view.depth / max(float(np.percentile(view.depth, 99)), 1e-6)
+    depth_rgb = cv2.applyColorMap((np.clip(depth, 0, 1) * 255).astype(np.uint8), cv2.COLORMAP_VIRIDIS)[..., ::-1] / 255.0
+    normal_rgb = (1 - view.normal) / 2  # camera-frame normal facing the camera -> bright
+    tiles = [view.rgb] + ([observed_rgb] if observed_rgb is not None else []) + [depth_rgb, normal_rgb]
+    png = (np.clip(np.concatenate(tiles, axis=1), 0, 1) * 255).astype(np.uint8)
+    cv2.imwrite(str(path.with_suffix(".png")), cv2.cvtColor(png, cv2.COLOR_RGB2BGR))
+    return path
+
+
+def render_view(model: SceneModel, beta: BetaField, T_world_cam: torch.Tensor, intr: Intrinsics, cfg: SlamConfig) -> RenderedImage:
+    return render_image(model, beta, T_world_cam, intr, cfg.render)
+
+
+def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intrinsics, resolution: int) -> trimesh.Trimesh:
+    """Marching cubes over the bound, evaluating the full SDF only in voxels the mapping
+    sampled (elsewhere the map knows nothing: treated as free space), then culled to
+    the cameras' frustums. Vertex colours from the colour network."""
+    lo, hi = model.bound.world_min_max()
+    observed = beta.counts > 0
+
+    def sdf_fn(x: torch.Tensor) -> torch.Tensor:
+        xn = model.bound.normalise(x)
+        mask = observed[beta.voxel_index(xn)]
+        out = torch.full((x.shape[0],), 1.0, dtype=x.dtype)
+        if mask.any():
+            out[mask] = model.sdf_world(x[mask])
+        return out
+
+    with torch.no_grad():
+        mesh = extract_mesh(sdf_fn, model.color_world, lo, hi, resolution)
+    return cull_to_frustums(mesh, poses, intr) if len(mesh.faces) else mesh

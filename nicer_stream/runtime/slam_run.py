@@ -1,0 +1,158 @@
+"""`nicer-stream run`: source -> priors -> SLAM -> sinks -> output directory."""
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from nicer_stream import config as config_mod
+from nicer_stream.errors import UserError
+from nicer_stream.runtime.frame_priors import make_engine, provider_names
+from nicer_stream.runtime.prior_stage import PriorStage
+from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_trajectory
+from nicer_stream.runtime.scene_export import save_render, scene_mesh
+from nicer_stream.runtime.stage_timer import StageTimer
+from nicer_stream.render.renderer import render_image
+from nicer_stream.slam.events import FrameTracked, KeyframeAdded, MapUpdated
+from nicer_stream.slam.system import SlamSystem
+from sources import open_source
+from sources.base import SourceOptions
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class RunRequest:
+    """What `nicer-stream run` was asked to do."""
+
+    source: str
+    out_dir: Path
+    priors: str = "oracle"
+    flow: str | None = None
+    preset: str = "fast"
+    config_file: str | None = None
+    sinks: tuple[str, ...] = ()
+    device: str = "cpu"
+    realtime: bool = False
+    render_every: int = 5
+    source_opts: SourceOptions = field(default_factory=SourceOptions)
+
+
+class _Pacer:
+    """--realtime: drop frames whose recorded time has already passed on the wall clock."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled, self.t0, self.s0, self.dropped = enabled, None, None, 0
+
+    def drop(self, timestamp: float) -> bool:
+        if not self.enabled:
+            return False
+        now = time.perf_counter()
+        if self.t0 is None:
+            self.t0, self.s0 = now, timestamp
+            return False
+        due = self.t0 + (timestamp - self.s0)
+        if now > due:
+            self.dropped += 1
+            return True
+        time.sleep(max(0.0, due - now))
+        return False
+
+
+def run_slam(req: RunRequest) -> Path:
+    cfg = config_mod.load(req.preset, req.config_file)
+    torch.manual_seed(cfg.seed)
+    timer = StageTimer()
+    opts = req.source_opts
+    if opts.max_side is None and opts.scale is None and cfg.max_side is not None:
+        opts = SourceOptions(**{**vars(opts), "max_side": cfg.max_side})
+    source = open_source(req.source, opts)
+    out = Path(req.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    engine = make_engine(req.priors, req.flow, req.device)
+    stage = PriorStage(engine)
+    slam = SlamSystem(cfg, req.device)
+    from sinks import make_sink
+
+    sink = make_sink(list(req.sinks)) if req.sinks else None
+    pacer = _Pacer(req.realtime)
+    interrupted, n, intr, kept = False, 0, None, {}
+    track_s = map_s = 0.0
+    try:
+        for frame in source:
+            if pacer.drop(frame.timestamp):
+                continue
+            intr = frame.intrinsics
+            with timer.stage("priors"):
+                pri = stage(frame)
+            t0 = time.perf_counter()
+            events = slam.step(frame.without_ground_truth(), pri)
+            step_s = time.perf_counter() - t0
+            mapped = sum(e.seconds for e in events if isinstance(e, MapUpdated))
+            map_s += mapped
+            track_s += step_s - mapped
+            timer.seconds.mapping += mapped
+            timer.seconds.tracking += step_s - mapped
+            n += 1
+            for e in events:
+                if isinstance(e, KeyframeAdded):
+                    stage.add_keyframe(frame)
+                if isinstance(e, FrameTracked):
+                    kept[e.index] = frame.rgb if e.index % max(1, req.render_every) == 0 else None
+                    lost = f" LOST ({e.lost})" if e.lost else ""
+                    print(f"frame {e.index:5d}  track loss {e.loss:.4f}  {step_s:.1f} s{lost}", flush=True)
+                    if sink is not None:
+                        with timer.stage("sinks"):
+                            sink.log_frame(e.index, e.timestamp, frame.rgb, frame.intrinsics, e.T_world_cam,
+                                           gt_T_world_cam=frame.gt_pose, timestamp_ns=frame.timestamp_ns)
+                            if math.isfinite(e.loss):
+                                sink.log_scalars(e.index, {"tracking_loss": e.loss, "seconds": step_s})
+        with timer.stage("mapping"):
+            slam.finish()
+    except KeyboardInterrupt:
+        interrupted = True
+        print("interrupted: writing what was computed so far", flush=True)
+    if slam.model is None:
+        if sink is not None:
+            sink.close()
+        raise UserError(f"source {req.source} gave no frames")
+    times, poses = slam.trajectory()
+    with timer.stage("sinks"):
+        write_trajectory(out, times, poses)
+        poses_np = np.stack(poses)
+        for i, T in zip(slam.order, poses):
+            if kept.get(i) is not None:
+                view = render_image(slam.model, slam.beta, torch.as_tensor(T, dtype=torch.float32), intr, cfg.render)
+                save_render(out, i, view, kept[i])
+        mesh = scene_mesh(slam.model, slam.beta, poses_np, intr, cfg.mesh.resolution)
+        write_mesh(out, mesh)
+        if sink is not None:
+            sink.log_trajectory(poses_np[:, :3, 3], rotations=poses_np[:, :3, :3])
+            if len(mesh.faces):
+                sink.log_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), np.asarray(mesh.visual.vertex_colors)[:, :3])
+            centres, betas = slam.beta.voxel_betas()
+            world = slam.model.bound.denormalise(centres.to(torch.float32)).cpu().numpy()
+            sink.log_beta_voxels(world, betas.cpu().numpy(), 2 * slam.model.bound.half_extent / slam.cfg.render.beta_voxels)
+            sink.close()
+    notes = [f"scene bound from {slam.bound.source}"]
+    if slam.scale_rule:
+        notes.append(f"metric scale: first frame's depth-prior median taken as {cfg.loss.first_depth_median_m} m")
+    if pacer.dropped:
+        notes.append(f"--realtime dropped {pacer.dropped} frames (not in trajectory.tum)")
+    s = write_summary(
+        out, frames=n, preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
+        interrupted=interrupted, bound=slam.bound, source=req.source, notes=notes,
+        intrinsics={k: getattr(intr, k) for k in ("fx", "fy", "cx", "cy", "width", "height")},
+        config=config_mod.to_dict(cfg),
+        stats={"keyframes": len(slam.keyframes), "lost_frames": slam.lost_frames, "dropped_frames": pacer.dropped,
+               "tracking_s_per_frame": track_s / max(n, 1), "mapping_s_per_frame": map_s / max(n, 1),
+               "skipped_corrupt_source_frames": getattr(source, "skipped_frames", 0)},
+    )
+    print(f"{n} frames in {s.wall_s:.0f} s ({s.seconds_per_frame:.1f} s/frame: tracking {track_s / max(n, 1):.1f}, "
+          f"mapping {map_s / max(n, 1):.1f}); {len(slam.lost_frames)} lost; outputs in {out}", flush=True)
+    return out

@@ -1,0 +1,38 @@
+"""Typed events emitted by the SLAM system (consumed by sinks, progress, the CLI)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class FrameTracked:
+    """A frame's estimated T_world_cam (4, 4) float64; `lost` names a tracking failure (pose then
+    comes from the motion model)."""
+
+    index: int
+    timestamp: float
+    T_world_cam: np.ndarray
+    loss: float
+    seconds: float
+    lost: str | None = None
+
+
+@dataclass(frozen=True)
+class KeyframeAdded:
+    index: int
+
+
+@dataclass(frozen=True)
+class MapUpdated:
+    """A mapping call finished over `window` frame indices."""
+
+    index: int
+    window: tuple[int, ...]
+    loss: float
+    iters: int
+    seconds: float
+
+
+Event = FrameTracked | KeyframeAdded | MapUpdated

@@ -1,0 +1,155 @@
+"""The streaming SLAM system: `step(frame)` per frame, `finish()` at the end.
+
+Synchronous: tracking and mapping run in the caller's thread, in order. The tracker
+only reads the scene model. No ground truth enters: `step` refuses frames that
+carry any (priors are computed beforehand by runtime.prior_stage).
+"""
+from __future__ import annotations
+
+import logging
+import random
+
+import numpy as np
+import torch
+
+from nicer_stream.config import SlamConfig
+from nicer_stream.mapping.map_frame import MapFrame
+from nicer_stream.mapping.mapper import Mapper
+from nicer_stream.model.bound import SceneBound
+from nicer_stream.model.scene import SceneModel
+from nicer_stream.render.beta import BetaField
+from nicer_stream.runtime.bound_estimate import bound_from_config, bound_from_depth
+from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpdated
+from nicer_stream.slam.motion import predict_pose, tracking_failure
+from nicer_stream.slam.window import ba_frames, select_window
+from nicer_stream.tracking.tracker import Tracker
+from nicer_stream.errors import UserError
+from nicer_stream.types import Frame, Priors
+
+log = logging.getLogger(__name__)
+
+
+class SlamSystem:
+    """Owns the scene, the optimisers, keyframes and the trajectory."""
+
+    def __init__(self, cfg: SlamConfig, device: str = "cpu") -> None:
+        self.cfg, self.device = cfg, torch.device(device)
+        self.rng = random.Random(cfg.seed)
+        self.model: SceneModel | None = None
+        self.beta: BetaField | None = None
+        self.mapper: Mapper | None = None
+        self.tracker: Tracker | None = None
+        self.bound: SceneBound | None = None
+        self.frames: dict[int, MapFrame] = {}  # keyframes + the latest frame
+        self.keyframes: list[int] = []
+        self.poses: dict[int, torch.Tensor] = {}
+        self.timestamps: dict[int, float] = {}
+        self.order: list[int] = []
+        self.lost_frames: list[int] = []
+        self.recent_losses: list[float] = []
+        self.scale_rule: tuple[float, float] | None = None
+
+    # -- per frame -------------------------------------------------------------------
+    def step(self, frame: Frame, priors: Priors | None = None) -> list[Event]:
+        """Track `frame` (GT-free), add it as a keyframe / map when the schedule says so."""
+        if frame.gt_pose is not None or frame.gt_depth is not None:
+            raise UserError("SlamSystem.step got a frame with ground truth: pass frame.without_ground_truth()")
+        events: list[Event] = []
+        if not np.isfinite(frame.rgb).all():
+            return [self._skip_corrupt(frame)]
+        mf = MapFrame.from_frame(frame, priors, self.device)
+        if priors is not None:  # flows from stored frames to this one
+            for kf in self.frames.values():
+                kf.add_flows(priors)
+        if self.model is None:
+            events += self._initialise(mf)
+        else:
+            events.append(self._track(mf))
+        i = frame.index
+        self.order.append(i)
+        self.timestamps[i] = frame.timestamp
+        self._store(mf)
+        is_kf = len(self.order) % self.cfg.mapping.keyframe_every == 1 or self.cfg.mapping.keyframe_every == 1
+        if is_kf and i not in self.keyframes:
+            self.keyframes.append(i)
+            events.append(KeyframeAdded(i))
+        if len(self.order) > 1 and (len(self.order) - 1) % self.cfg.mapping.every == 0:
+            events.append(self._map(i, self.cfg.mapping.iters))
+        return events
+
+    def finish(self) -> list[Event]:
+        """Final mapping over the latest frame if it was not just mapped."""
+        if self.model is None or (len(self.order) - 1) % self.cfg.mapping.every == 0:
+            return []
+        return [self._map(self.order[-1], self.cfg.mapping.iters)]
+
+    # -- stages ----------------------------------------------------------------------
+    def _initialise(self, mf: MapFrame) -> list[Event]:
+        T0 = torch.eye(4, device=self.device)
+        self.poses[mf.index] = T0
+        cfg = self.cfg
+        if mf.depth_prior is not None and cfg.bound.mode == "auto":
+            valid = mf.depth_prior[mf.depth_prior > 0]
+            w = float(valid.median()) / cfg.loss.first_depth_median_m
+            self.scale_rule = (w, 0.0)
+            depth_m = (mf.depth_prior / w).cpu().numpy()
+            self.bound = bound_from_depth(depth_m, mf.intr, T0.cpu().numpy().astype(np.float64), cfg.bound)
+        else:
+            self.bound = bound_from_config(cfg.bound)
+        self.model = SceneModel(cfg.model, self.bound).to(self.device)
+        self.beta = BetaField(cfg.render).to(self.device)
+        self.mapper = Mapper(self.model, self.beta, cfg, cfg.seed)
+        self.tracker = Tracker(self.model, self.beta, cfg.tracking, cfg.render, cfg.seed)
+        self.frames[mf.index] = mf
+        stats = self.mapper.optimise([mf], self.poses, cfg.mapping.first_iters, fixed_scale_shift=self.scale_rule)
+        return [
+            FrameTracked(mf.index, mf.timestamp, T0.double().cpu().numpy(), 0.0, 0.0),
+            MapUpdated(mf.index, (mf.index,), stats.loss, stats.iters, stats.seconds),
+        ]
+
+    def _track(self, mf: MapFrame) -> FrameTracked:
+        history = [self.poses[i] for i in self.order[-2:]]
+        T_pred = predict_pose(history, self.cfg.tracking.init)
+        res = self.tracker.track(mf, T_pred)
+        reason = tracking_failure(res.T_world_cam, T_pred, res.loss, self.recent_losses, self.cfg.tracking)
+        T = T_pred if reason else res.T_world_cam
+        if reason:
+            self.lost_frames.append(mf.index)
+            log.warning("frame %d: tracking lost (%s): using the motion model", mf.index, reason)
+        else:
+            self.recent_losses = (self.recent_losses + [res.loss])[-10:]
+        self.poses[mf.index] = T.detach()
+        return FrameTracked(mf.index, mf.timestamp, T.detach().double().cpu().numpy(), res.loss, res.seconds, reason)
+
+    def _skip_corrupt(self, frame: Frame) -> FrameTracked:
+        """A frame with non-finite pixels: pose from the motion model, never mapped."""
+        reason = "non-finite pixels in the input frame"
+        log.warning("frame %d: %s: skipped (pose from the motion model)", frame.index, reason)
+        self.lost_frames.append(frame.index)
+        if self.order:
+            T = predict_pose([self.poses[i] for i in self.order[-2:]], self.cfg.tracking.init)
+        else:
+            T = torch.eye(4, device=self.device)
+        self.poses[frame.index] = T
+        self.order.append(frame.index)
+        self.timestamps[frame.index] = frame.timestamp
+        return FrameTracked(frame.index, frame.timestamp, T.double().cpu().numpy(), float("nan"), 0.0, reason)
+
+    def _map(self, current: int, iters: int) -> MapUpdated:
+        window = select_window(self.keyframes, current, self.cfg.mapping, self.rng)
+        anchor = self.order[0]
+        ba = ba_frames(window, current, anchor) if self.cfg.mapping.ba_start < 1.0 else set()
+        stats = self.mapper.optimise([self.frames[k] for k in window], self.poses, iters, ba_indices=ba)
+        return MapUpdated(current, tuple(window), stats.loss, stats.iters, stats.seconds)
+
+    def _store(self, mf: MapFrame) -> None:
+        """Keep keyframes and the latest frame; drop the previous non-keyframe."""
+        self.frames[mf.index] = mf
+        for k in list(self.frames):
+            if k != mf.index and k not in self.keyframes and k != self.order[0]:
+                del self.frames[k]
+
+    # -- results ---------------------------------------------------------------------
+    def trajectory(self) -> tuple[list[float], list[np.ndarray]]:
+        """(timestamps, T_world_cam float64) of every frame so far, in input order."""
+        return [self.timestamps[i] for i in self.order], [self.poses[i].double().cpu().numpy() for i in self.order]

@@ -1,0 +1,75 @@
+"""GeometryField: sphere initialisation, analytic SDF gradient, fine level switch."""
+import torch
+
+from nicer_stream.config import ModelConfig
+from nicer_stream.model.geometry import GeometryField
+
+SMALL = ModelConfig(coarse_res=8, coarse_dim=4, coarse_hidden=16, fine_levels=2, fine_res_min=6,
+                    fine_res_max=9, fine_hidden=16, fine_layers=2, geo_feature_dim=5)
+
+
+def _points(n, seed=0, dtype=torch.float32):
+    return (torch.rand(n, 3, generator=torch.Generator().manual_seed(seed)) * 1.8 - 0.9).to(dtype)
+
+
+def test_default_init_is_sphere():
+    torch.manual_seed(0)
+    cfg = ModelConfig()  # the real (paper) sizes and initialisation
+    geo = GeometryField(cfg)
+    x = _points(512)
+    with torch.no_grad():
+        for fine in (False, True):
+            s = geo(x, use_fine=fine)
+            resid = s.sdf - (cfg.sphere_radius - x.norm(dim=-1))
+            assert resid.abs().max() < 1e-2
+            assert s.z_coarse.shape == s.z_fine.shape == (512, cfg.geo_feature_dim)
+            assert s.grad is None
+        s = geo(x, with_grad=True)
+    # The normal of the initial sphere points to the centre (into free space).
+    cos = torch.nn.functional.cosine_similarity(s.grad, -x, dim=-1)
+    assert cos.min() > 0.99
+
+
+def _perturbed(seed=1) -> GeometryField:
+    """A double-precision field whose MLPs and grids are far from the initialisation."""
+    torch.manual_seed(seed)
+    geo = GeometryField(SMALL).double()
+    with torch.no_grad():
+        for p in geo.parameters():
+            p.add_(torch.randn_like(p) * 0.3)
+    return geo
+
+
+def test_grad_equals_autograd():
+    geo = _perturbed()
+    x = _points(8, seed=2, dtype=torch.float64)
+    for fine in (False, True):
+        s = geo(x, use_fine=fine, with_grad=True)
+        assert torch.equal(s.sdf, geo(x, use_fine=fine).sdf)
+        xr = x.clone().requires_grad_(True)
+        (g,) = torch.autograd.grad(geo(xr, use_fine=fine).sdf.sum(), xr)
+        assert torch.allclose(s.grad, g, atol=1e-9), (fine, (s.grad - g).abs().max())
+        assert s.grad.abs().max() > 0.1
+
+
+def test_grad_is_differentiable_wrt_parameters():
+    geo = _perturbed()
+    s = geo(_points(16, dtype=torch.float64), with_grad=True)
+    ((s.grad.norm(dim=-1) - 1) ** 2).mean().backward()  # Eikonal-style, first-order only
+    assert geo.coarse_grid.table.grad.abs().sum() > 0
+    assert geo.fine_grid.table.grad.abs().sum() > 0
+
+
+def test_use_fine_false_ignores_fine_grid():
+    geo = _perturbed()
+    x = _points(32, seed=3, dtype=torch.float64)
+    coarse0, full0 = geo(x, use_fine=False, with_grad=True), geo(x, use_fine=True)
+    with torch.no_grad():
+        geo.fine_grid.table.add_(torch.randn_like(geo.fine_grid.table))
+        for p in geo.fine_mlp.parameters():
+            p.add_(torch.randn_like(p) * 0.3)
+    coarse1, full1 = geo(x, use_fine=False, with_grad=True), geo(x, use_fine=True)
+    assert torch.equal(coarse0.sdf, coarse1.sdf)
+    assert torch.equal(coarse0.grad, coarse1.grad)
+    assert torch.equal(coarse1.z_fine, torch.zeros_like(coarse1.z_fine))
+    assert (full0.sdf - full1.sdf).abs().max() > 1e-3  # the full SDF does see the fine level

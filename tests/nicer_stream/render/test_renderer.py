@@ -1,0 +1,172 @@
+"""Renderer: the initial sphere, z-depth conversion, pose gradients, a small overfit."""
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from nicer_stream.config import MappingConfig, ModelConfig, RenderConfig
+from nicer_stream.geometry.camera import pixel_grid
+from nicer_stream.geometry.se3 import make_pose, se3_exp, so3_exp
+from nicer_stream.model.bound import SceneBound
+from nicer_stream.model.scene import SceneModel
+from nicer_stream.render.beta import BetaField
+from nicer_stream.render.renderer import RayBatch, render_image, render_rays, rays_for_pixels
+from nicer_stream.types import Intrinsics
+
+SMALL = ModelConfig(coarse_res=16, fine_levels=2, fine_res_min=16, fine_res_max=32, color_levels=2,
+                    color_res_max=32, color_log2_table=12)
+RC = RenderConfig(n_probe=64, n_importance=32, n_uniform=8)  # adaptive beta, counts 0
+BOUND = SceneBound((0.5, -0.2, 0.3), 2.0, "config")
+INTR = Intrinsics(fx=20.0, fy=18.0, cx=4.0, cy=3.0, width=9, height=7)  # (4, 3) is the centre pixel
+
+
+def _model(cfg: ModelConfig = SMALL, seed: int = 0) -> SceneModel:
+    torch.manual_seed(seed)
+    return SceneModel(cfg, BOUND)
+
+
+def _pose_at_centre(phi=(0.3, -0.5, 0.2)) -> torch.Tensor:
+    return make_pose(so3_exp(torch.tensor(phi)), torch.tensor(BOUND.centre))
+
+
+def _unit_cam_dirs(intr: Intrinsics) -> torch.Tensor:
+    uv = pixel_grid(intr)
+    d = torch.stack([(uv[:, 0] - intr.cx) / intr.fx, (uv[:, 1] - intr.cy) / intr.fy, torch.ones(len(uv))], -1)
+    return (d / d.norm(dim=-1, keepdim=True)).reshape(intr.height, intr.width, 3)
+
+
+def test_initial_sphere_renders_from_inside():
+    model, beta = _model(), BetaField(RC)
+    T = _pose_at_centre()
+    img = render_image(model, beta, T, INTR, RC)
+    h, w = INTR.height, INTR.width
+    assert img.rgb.shape == (h, w, 3) and img.normal.shape == (h, w, 3)
+    assert img.depth.shape == (h, w) and img.opacity.shape == (h, w)
+    assert img.rgb.dtype == np.float32 and (img.rgb >= 0).all() and (img.rgb <= 1).all()
+    radius_m = SMALL.sphere_radius * BOUND.half_extent
+    assert abs(img.depth[3, 4] - radius_m) < 0.02 * radius_m
+    assert (img.opacity > 0.99).all()
+    # Every pixel sees the sphere at ray distance radius: z-depth = radius * d_z.
+    d_cam = _unit_cam_dirs(INTR).numpy()
+    assert np.allclose(img.depth, radius_m * d_cam[..., 2], rtol=0.02)
+    assert abs(d_cam[0, 0, 2] - 1) > 0.02  # the corner is a real test of z vs ray distance
+    # Camera-frame normals face the camera: n ~ -d.
+    n = img.normal / np.linalg.norm(img.normal, axis=-1, keepdims=True)
+    assert ((n * d_cam).sum(-1) < -0.99).all()
+    assert np.allclose(np.linalg.norm(img.normal, axis=-1), 1, atol=0.02)
+
+
+def test_chunking_and_fine_switch():
+    model, beta = _model(), BetaField(RC)
+    T = _pose_at_centre()
+    a = render_image(model, beta, T, INTR, RC)
+    b = render_image(model, beta, T, INTR, RenderConfig(n_probe=64, n_importance=32, n_uniform=8, chunk_rays=5))
+    assert np.allclose(a.depth, b.depth, atol=1e-5) and np.allclose(a.rgb, b.rgb, atol=1e-5)
+    with torch.no_grad():
+        model.geometry.fine_grid.table.normal_()
+    c = render_image(model, beta, T, INTR, RC, use_fine=False)
+    assert np.allclose(a.depth, c.depth, atol=2e-3)  # coarse-only ignores the scrambled fine grid
+    d = render_image(model, beta, T, INTR, RC, use_fine=True)
+    assert np.abs(a.depth - d.depth).max() > 1e-3
+
+
+def test_ray_batch_z_per_dist():
+    T = _pose_at_centre()
+    uv = torch.tensor([[0.0, 0.0], [4.0, 3.0], [8.0, 6.0]])
+    rays = rays_for_pixels(uv, INTR, T)
+    assert torch.allclose(rays.dirs.norm(dim=-1), torch.ones(3))
+    d_corner = math.sqrt((4 / 20.0) ** 2 + (3 / 18.0) ** 2 + 1)
+    assert torch.allclose(rays.z_per_dist, torch.tensor([1 / d_corner, 1.0, 1 / d_corner]))
+    # World direction of the centre pixel is the camera's optical axis.
+    assert torch.allclose(rays.dirs[1], T[:3, 2], atol=1e-6)
+    out = render_rays(_model(), BetaField(RC), rays, RC, jitter=False)
+    assert torch.allclose(out.depth, out.ray_dist * rays.z_per_dist)
+    radius_m = SMALL.sphere_radius * BOUND.half_extent
+    assert torch.allclose(out.ray_dist, torch.full((3,), radius_m), rtol=0.02)
+    assert out.points.shape == out.sdf_grad.shape == (3 * 40, 3)
+
+
+def test_pose_gradients():
+    cfg = ModelConfig(**{**SMALL.__dict__, "sphere_radius": 0.6})  # keep the wall away from the box edge
+    model, beta = _model(cfg), BetaField(RC)
+    T0 = _pose_at_centre()
+    uv = torch.tensor([[4.0, 3.0], [1.0, 5.0]])
+
+    def depth(xi: torch.Tensor) -> torch.Tensor:
+        return render_rays(model, beta, rays_for_pixels(uv, INTR, T0 @ se3_exp(xi)), RC, jitter=False).depth
+
+    xi = torch.zeros(6, requires_grad=True)
+    out = render_rays(model, beta, rays_for_pixels(uv, INTR, T0 @ se3_exp(xi)), RC, jitter=False)
+    (out.depth[0] + out.rgb.sum() + out.normal.sum()).backward()
+    g = xi.grad
+    assert torch.isfinite(g).all() and g.abs().max() > 0.1
+    # Moving forward (camera +z) by e shortens the centre depth by ~e: compare with central differences
+    # (the renderer holds sample distances fixed, so the analytic value is a little smaller in magnitude).
+    e = torch.zeros(6)
+    e[2] = 1e-3
+    with torch.no_grad():
+        fd = ((depth(e) - depth(-e)) / 2e-3)[0].item()
+    assert abs(fd + 1) < 0.05
+    assert -1.1 < g[2].item() < -0.7 and abs(g[2].item() - fd) < 0.25
+    assert model.geometry.coarse_grid.table.grad is not None
+    assert model.color.mlp[0].weight.grad.abs().sum() > 0
+
+
+def _sphere_ray_dist(rays: RayBatch, centre: torch.Tensor, radius: float) -> torch.Tensor:
+    """Distance from inside a sphere along unit rays to its surface."""
+    oc = rays.origins - centre
+    b = (rays.dirs * oc).sum(-1)
+    c = (oc * oc).sum(-1) - radius**2
+    return -b + torch.sqrt(b * b - c)
+
+
+def test_overfit_sphere_depth():
+    """Depth-only fit of an off-centre sphere of radius 1.4 m seen from inside by 6 cameras.
+
+    Measured on 2 cores: held-pixel mean |error| ~0.45-0.5% of the radius (3 seeds), 90th
+    percentile ~1%, max ~2%; limited by the stochastic (jittered) training samples.
+    """
+    torch.manual_seed(0)
+    g = torch.Generator().manual_seed(0)
+    model = SceneModel(SMALL, BOUND)
+    rc = RenderConfig(n_probe=32, n_importance=16, n_uniform=4, beta_mode="fixed", beta_fixed=0.01)
+    beta = BetaField(rc)
+    centre = torch.tensor(BOUND.centre) + BOUND.half_extent * torch.tensor([0.1, 0.0, 0.05])
+    radius = 0.7 * BOUND.half_extent
+    intr = Intrinsics(12.0, 12.0, 7.5, 5.5, 16, 12)
+    uv = pixel_grid(intr)
+    rays = []
+    for k in range(6):  # looking all around, from near the bound centre
+        phi = torch.tensor([0.0, k * math.pi / 3, 0.0]) + 0.2 * torch.randn(3, generator=g)
+        t = torch.tensor(BOUND.centre) + 0.3 * torch.randn(3, generator=g)
+        rays.append(rays_for_pixels(uv, intr, make_pose(so3_exp(phi), t)))
+    allr = RayBatch(*(torch.cat([getattr(r, f) for r in rays]) for f in ("origins", "dirs", "z_per_dist")))
+    target = _sphere_ray_dist(allr, centre, radius) * allr.z_per_dist
+    perm = torch.randperm(len(target), generator=g)
+    held, train = perm[:200], perm[200:]
+
+    def sub(i):
+        return RayBatch(allr.origins[i], allr.dirs[i], allr.z_per_dist[i])
+
+    def held_error() -> torch.Tensor:
+        with torch.no_grad():
+            return (render_rays(model, beta, sub(held), rc, jitter=False).depth - target[held]).abs() / radius
+
+    e0 = held_error()
+    groups = model.param_groups(MappingConfig())
+    opt = torch.optim.Adam([groups[k] for k in ("coarse", "coarse_mlp", "fine", "fine_mlp")])
+    iters = 120
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda it: 0.05 ** (it / iters))
+    for it in range(iters):
+        i = train[torch.randint(len(train), (128,), generator=g)]
+        out = render_rays(model, beta, sub(i), rc, use_fine=it >= iters // 4)
+        loss = (out.depth - target[i]).abs().mean()
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        sched.step()
+    e = held_error()
+    assert e0.mean() > 0.2  # the initial sphere is far from the target
+    assert e.mean() < 0.01, f"mean held depth error {e.mean():.4f} of the radius"
+    assert e.median() < 0.01 and torch.quantile(e, 0.9) < 0.02 and e.max() < 0.04
