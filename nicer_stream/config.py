@@ -271,7 +271,14 @@ def load(preset_name: str, file: str | Path | None = None) -> SlamConfig:
     if not path.exists():
         raise UserError(f"config file {path} does not exist")
     text = path.read_text()
-    values = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
+    kind = "TOML" if path.suffix == ".toml" else "JSON"
+    try:  # TOMLDecodeError and JSONDecodeError are ValueErrors
+        values = tomllib.loads(text) if kind == "TOML" else json.loads(text)
+    except ValueError as e:
+        msg = str(e).replace("\n", " ")
+        raise UserError(f"config file {path} is not valid {kind} ({msg}): fix it or remove --config") from None
+    if not isinstance(values, dict):
+        raise UserError(f"config file {path} must hold a table of settings at the top level")
     return override(cfg, values)
 
 

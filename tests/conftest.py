@@ -33,3 +33,43 @@ def tum_dir(data_dir: Path) -> Path:
     if not p.is_dir():
         pytest.skip(f"{p} missing")
     return p
+
+
+# A tiny configuration so that end-to-end runs take seconds (overrides the `fast` preset).
+TINY_TOML = """
+max_side = 48
+[model]
+coarse_res = 16
+fine_levels = 2
+fine_res_min = 16
+fine_res_max = 24
+color_levels = 2
+color_res_max = 32
+color_log2_table = 12
+[render]
+n_probe = 16
+n_importance = 8
+n_uniform = 2
+chunk_rays = 4096
+[mapping]
+iters = 3
+first_iters = 5
+rays = 128
+eikonal_points = 16
+batch_iters = 6
+every = 2
+keyframe_every = 2
+[tracking]
+iters = 3
+rays = 64
+[mesh]
+resolution = 24
+"""
+
+
+@pytest.fixture
+def tiny_config(tmp_path: Path) -> Path:
+    """Path of a TOML config file with tiny models, images and iteration counts."""
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY_TOML)
+    return path

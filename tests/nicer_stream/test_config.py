@@ -77,6 +77,16 @@ def test_load_toml_and_json(tmp_path: Path):
         C.load("paper", bad)
 
 
+@pytest.mark.parametrize("name,text", [("x.json", "{mapping: 3"), ("x.toml", "[mapping\niters = 3"),
+                                       ("x.json", "[1, 2]")])
+def test_load_malformed_file_is_one_line_user_error(tmp_path: Path, name: str, text: str):
+    p = tmp_path / name
+    p.write_text(text)
+    with pytest.raises(UserError, match="x\\.(json|toml)") as e:
+        C.load("paper", p)
+    assert "\n" not in str(e.value)
+
+
 def test_to_dict_round_trips_through_override():
     cfg = C.fast()
     assert C.override(C.paper(), C.to_dict(cfg)) == cfg

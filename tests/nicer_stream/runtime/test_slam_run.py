@@ -11,11 +11,9 @@ from nicer_stream.slam.system import SlamSystem
 from nicer_stream.config import load
 from sources.base import SourceOptions
 
-from .tiny_config import write_tiny_config
 
-
-def test_run_writes_the_output_contract(tmp_path):
-    cfg = write_tiny_config(tmp_path)
+def test_run_writes_the_output_contract(tmp_path, tiny_config):
+    cfg = tiny_config
     out = run_slam(RunRequest(source="synthetic:room?frames=6", out_dir=tmp_path / "out", priors="oracle",
                               preset="fast", config_file=str(cfg), sinks=(f"rerun:{tmp_path / 'rec.rrd'}",)))
     t, poses = read_tum(out / od.TRAJECTORY_FILE)
@@ -34,7 +32,7 @@ def test_run_writes_the_output_contract(tmp_path):
     assert any((out / od.RENDERS_DIR).glob("*.npz"))
 
 
-def test_nan_frame_does_not_reach_outputs(tmp_path, monkeypatch):
+def test_nan_frame_does_not_reach_outputs(tmp_path, monkeypatch, tiny_config):
     import sources.synthetic as synth
 
     real_open = synth.open
@@ -54,7 +52,7 @@ def test_nan_frame_does_not_reach_outputs(tmp_path, monkeypatch):
         return src
 
     monkeypatch.setattr(synth, "open", open_with_nan)
-    cfg = write_tiny_config(tmp_path)
+    cfg = tiny_config
     out = run_slam(RunRequest(source="synthetic:room?frames=5", out_dir=tmp_path / "out", priors="none", flow="none",
                               config_file=str(cfg)))
     t, poses = read_tum(out / od.TRAJECTORY_FILE)
