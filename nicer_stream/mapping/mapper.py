@@ -6,6 +6,7 @@ Stage 1 (< fine_start): coarse SDF only. Stage 2: coarse + fine. Stage 3
 """
 from __future__ import annotations
 
+import random
 from dataclasses import dataclass
 
 import torch
@@ -43,6 +44,7 @@ class Mapper:
         # fused Adam: one kernel over the ~20M grid parameters, ~5x faster than the default on CPU.
         self.opt = torch.optim.Adam(list(groups.values()), betas=(0.9, 0.99), eps=1e-15, fused=True)
         self.gen = torch.Generator().manual_seed(seed)
+        self.rng = random.Random(seed)
 
     def _frozen(self, frac: float) -> set[str]:
         m = self.cfg.mapping
@@ -87,7 +89,7 @@ class Mapper:
             rays, layout = batch_rays(frames, T, m.rays, self.gen)
             out = render_rays(self.model, self.beta, rays, self.cfg.render, use_fine=use_fine)
             extra = self._eikonal_points(m.eikonal_points, use_fine)
-            terms = mapping_terms(out, layout, self.cfg.loss, fixed_scale_shift, extra)
+            terms = mapping_terms(out, layout, self.cfg.loss, fixed_scale_shift, extra, self.rng)
             loss = total_loss(terms, self.cfg.loss.weights)
             self.opt.zero_grad(set_to_none=True)
             if pose_opt is not None:

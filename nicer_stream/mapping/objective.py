@@ -1,6 +1,8 @@
 """The mapping objective (Eq. 12) for one rendered ray batch."""
 from __future__ import annotations
 
+import random
+
 import torch
 
 from nicer_stream.config import LossConfig
@@ -15,15 +17,18 @@ def _mean(xs: list[torch.Tensor]) -> torch.Tensor | None:
     return torch.stack(xs).mean() if xs else None
 
 
-def _warp_partners(fr: FrameRays, layout: list[FrameRays], k: int) -> list[FrameRays]:
-    """The k other window frames closest in time."""
+def _warp_partners(fr: FrameRays, layout: list[FrameRays], k: int, rng: random.Random) -> list[FrameRays]:
+    """k other window frames drawn at random each iteration, those with a flow prior first:
+    varied baselines constrain depth far better than the nearest (near-zero parallax) frames."""
     others = [o for o in layout if o.frame.index != fr.frame.index]
-    return sorted(others, key=lambda o: abs(o.frame.index - fr.frame.index))[:k]
+    rng.shuffle(others)
+    others.sort(key=lambda o: o.frame.index not in fr.frame.flows)
+    return others[:k]
 
 
 def mapping_terms(out: RenderOutput, layout: list[FrameRays], cfg: LossConfig,
                   fixed_scale_shift: tuple[float, float] | None = None,
-                  extra_sdf_grad: torch.Tensor | None = None) -> LossTerms:
+                  extra_sdf_grad: torch.Tensor | None = None, rng: random.Random | None = None) -> LossTerms:
     """Unweighted loss terms. Per-frame terms (depth alignment, warping, flow) are
     computed frame by frame and averaged."""
     rgb, warp, flow, depth, n_l1, n_ang = [], [], [], [], [], []
@@ -41,7 +46,7 @@ def mapping_terms(out: RenderOutput, layout: list[FrameRays], cfg: LossConfig,
             l1, ang = normal_loss(n_cam, f.normal_prior.reshape(-1, 3)[fr.pix])
             n_l1.append(l1)
             n_ang.append(ang)
-        partners = _warp_partners(fr, layout, cfg.warp_frames) if (cfg.weights.warp > 0 or cfg.weights.flow > 0) else []
+        partners = _warp_partners(fr, layout, cfg.warp_frames, rng or random.Random(0)) if (cfg.weights.warp > 0 or cfg.weights.flow > 0) else []
         if partners:
             uvs, valids, imgs = [], [], []
             for p in partners:

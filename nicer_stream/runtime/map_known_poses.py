@@ -73,7 +73,8 @@ def run_map(req: MapRequest) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     engine = make_engine(req.priors, req.flow, req.device)
     with timer.stage("priors"):
-        mfs = [map_frame(f, engine, [frames[j] for j in (i - 1, i + 1) if 0 <= j < len(frames)], req.device)
+        # Flows to frames 2 and 5 steps away (both ways): parallax large enough to constrain depth.
+        mfs = [map_frame(f, engine, [frames[j] for j in (i - 5, i - 2, i + 2, i + 5) if 0 <= j < len(frames)], req.device)
                for i, f in enumerate(frames)]
     bound = bound_from_config(cfg.bound) if cfg.bound.mode == "config" else bound_from_cameras(poses_np, cfg.bound)
     model = SceneModel(cfg.model, bound).to(req.device)
