@@ -164,6 +164,12 @@ class TrackingConfig:
     """A rotation change beyond this is a tracking loss."""
     loss_jump: float = 4.0
     """Final loss above this multiple of the running median is a tracking loss."""
+    n_probe: int | None = None
+    """Probe samples per ray while tracking (None: as in mapping)."""
+    n_importance: int | None = None
+    """Importance samples per ray while tracking (None: as in mapping)."""
+    n_uniform: int | None = None
+    """Stratified samples per ray while tracking (None: as in mapping)."""
 
 
 @dataclass(frozen=True)

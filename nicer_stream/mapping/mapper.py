@@ -101,6 +101,7 @@ class Mapper:
                     for p in group["params"]:
                         p.grad = None
             self.opt.step()
+            self.model.parameters_changed()
             if ba:
                 pose_opt.step()
             self.beta.count(out.points.detach())

@@ -65,10 +65,15 @@ class DenseGrids(nn.Module):
         r = self.res[:, None]
         self.register_buffer("corner_offsets", corner[None, :, 0] * r * r + corner[None, :, 1] * r + corner[None, :, 2], persistent=False)
         self.table = nn.Parameter(torch.randn(sum(sizes), dim) * init_std)
+        self._generation = 0
 
     @property
     def out_dim(self) -> int:
         return len(self.resolutions) * self.dim
+
+    def invalidate(self) -> None:
+        """Drop the inference-volume cache (the table changed)."""
+        self._generation += 1
 
     def forward(self, x: torch.Tensor, with_tangent: bool = False):
         """x (N, 3) in [-1, 1] -> features (N, L*dim) and optionally d/dx (N, 3, L*dim)."""
@@ -90,7 +95,9 @@ class DenseGrids(nn.Module):
     def _volumes(self, with_diffs: bool):
         """Per level: (1, C, R, R, R) copy of the table and, if asked, its forward differences
         along each axis; cached until the table changes (once per optimiser step)."""
-        key = (self.table._version, self.table.data_ptr())
+        # fused Adam updates in place without bumping `_version`: owners of an optimiser
+        # must call `invalidate()` after each step (SceneModel.parameters_changed).
+        key = (self.table._version, self.table.data_ptr(), self._generation)
         if getattr(self, "_vol_key", None) != key:
             vols, off = [], 0
             for r in self.resolutions:

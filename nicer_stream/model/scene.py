@@ -32,6 +32,11 @@ class SceneModel(nn.Module):
             "color_mlp": {"params": list(self.color.mlp.parameters()), "lr": m.lr},
         }
 
+    def parameters_changed(self) -> None:
+        """Call after every optimiser step: drops caches derived from the parameters."""
+        self.geometry.coarse_grid.invalidate()
+        self.geometry.fine_grid.invalidate()
+
     @torch.no_grad()
     def sdf_world(self, x_world: torch.Tensor, use_fine: bool = True) -> torch.Tensor:
         """(N, 3) world -> (N,) SDF in metres."""

@@ -48,6 +48,10 @@ class FlowProvider:
     def flow(self, src: Frame, dst: Frame) -> FlowPrior:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def has(self, src: Frame, dst: Frame) -> bool:
+        """Whether this provider can give the flow src -> dst (a cache holds only some pairs)."""
+        return True
+
     def flow_both(self, a: Frame, b: Frame) -> tuple[FlowPrior, FlowPrior]:
         """(flow a -> b, flow b -> a). Providers that get both at once (DIS) override this."""
         return self.flow(a, b), self.flow(b, a)
@@ -94,7 +98,7 @@ class PriorEngine:
 
     def flow(self, src: Frame, dst: Frame) -> FlowPrior | None:
         """Flow src -> dst (cached), or None with the `none` flow provider."""
-        if not self.flow_provider.active:
+        if not self.flow_provider.active or not self.flow_provider.has(src, dst):
             return None
         key = (src.index, dst.index)
         hit = self._flows.get(key)

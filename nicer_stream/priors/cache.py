@@ -120,6 +120,9 @@ class CacheFlow(FlowProvider):
         self.meta = read_meta(self.root)
         self.name = f"cache({self.meta.flow_provider})"
 
+    def has(self, src: Frame, dst: Frame) -> bool:
+        return flow_path(self.root, src.index, dst.index).is_file() and flow_path(self.root, dst.index, src.index).is_file()
+
     def flow(self, src: Frame, dst: Frame) -> FlowPrior:
         _check_size(self.meta, src, self.root)
         gap = abs(dst.index - src.index)

@@ -31,7 +31,8 @@ class RayBatch:
 class RenderOutput:
     """Per ray: rgb (R, 3), depth (R,) z-depth m, ray_dist (R,) m, normal (R, 3) world
     (unnormalised weighted sum, Eq. 6), opacity (R,). Per sample (with gradient):
-    points (R*S, 3) normalised, sdf_grad (R*S, 3) d sdf / d x_norm."""
+    points (R*S, 3) normalised, sdf_grad (R*S, 3) d sdf / d x_norm (without autograd:
+    only at the samples with non-negligible weight)."""
 
     rgb: torch.Tensor
     depth: torch.Tensor
@@ -70,20 +71,28 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
         t_uni = stratified(near, far, cfg.n_uniform, jitter) if cfg.n_uniform > 0 else t_imp[:, :0]
         t, _ = torch.sort(torch.cat([t_imp, t_uni], -1), -1)
     x = (o[:, None] + t[..., None] * d[:, None]).reshape(-1, 3)
-    geo = model.geometry(x, use_fine=use_fine, with_grad=True)
-    normal = geo.grad / geo.grad.norm(dim=-1, keepdim=True).clamp_min(1e-6)
     s = t.shape[1]
-    bx = beta(x)
-    sigma = laplace_density(geo.sdf.reshape(r, s), bx.reshape(r, s) if bx.dim() else bx)
-    w = render_weights(sigma, _composite_deltas(t, far))
     view = d[:, None].expand(r, s, 3).reshape(-1, 3)
+    bx = beta(x)
+    bx = bx.reshape(r, s) if bx.dim() else bx
     if torch.is_grad_enabled():
+        geo = model.geometry(x, use_fine=use_fine, with_grad=True)
+        w = render_weights(laplace_density(geo.sdf.reshape(r, s), bx), _composite_deltas(t, far))
+        normal = geo.grad / geo.grad.norm(dim=-1, keepdim=True).clamp_min(1e-6)
         rgb_s = model.color(x, normal, view, geo.z_coarse, geo.z_fine)
+        sdf_grad = geo.grad
     else:
-        # Inference: colour only where it can matter (weights computed first).
+        # Inference: weights from the SDF alone, then normals and colour only at the
+        # samples that can matter (a few per ray).
+        sdf = model.geometry(x, use_fine=use_fine).sdf
+        w = render_weights(laplace_density(sdf.reshape(r, s), bx), _composite_deltas(t, far))
         keep = (w.reshape(-1) > 1e-4).nonzero()[:, 0]
+        geo = model.geometry(x[keep], use_fine=use_fine, with_grad=True)
+        normal = x.new_zeros(x.shape[0], 3)
+        normal[keep] = geo.grad / geo.grad.norm(dim=-1, keepdim=True).clamp_min(1e-6)
         rgb_s = x.new_zeros(x.shape[0], 3)
-        rgb_s[keep] = model.color(x[keep], normal[keep], view[keep], geo.z_coarse[keep], geo.z_fine[keep])
+        rgb_s[keep] = model.color(x[keep], normal[keep], view[keep], geo.z_coarse, geo.z_fine)
+        sdf_grad = geo.grad
     ray_dist = accumulate(w, t) * b.half_extent
     return RenderOutput(
         rgb=accumulate(w, rgb_s.reshape(r, s, 3)),
@@ -92,7 +101,7 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
         normal=accumulate(w, normal.reshape(r, s, 3)),
         opacity=w.sum(-1),
         points=x,
-        sdf_grad=geo.grad,
+        sdf_grad=sdf_grad,
     )
 
 

@@ -14,6 +14,7 @@ from nicer_stream.io.trajectory import read_tum
 from nicer_stream.mapping.mapper import Mapper
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
+from nicer_stream.runtime.checkpoint import save_scene
 from nicer_stream.runtime.bound_estimate import bound_from_cameras, bound_from_config
 from nicer_stream.runtime.frame_priors import make_engine, map_frame, provider_names
 from nicer_stream.runtime.progress import Progress
@@ -21,7 +22,7 @@ from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_tr
 from nicer_stream.runtime.scene_export import save_render, scene_mesh
 from nicer_stream.runtime.stage_timer import StageTimer
 from nicer_stream.render.renderer import render_image
-from sources import open_source
+from nicer_stream.runtime.source_setup import intrinsics_dict, open_configured
 from sources.base import SourceOptions
 
 log = logging.getLogger(__name__)
@@ -61,10 +62,7 @@ def run_map(req: MapRequest) -> Path:
     cfg = config_mod.load(req.preset, req.config_file)
     timer = StageTimer()
     torch.manual_seed(cfg.seed)
-    opts = req.source_opts
-    if opts.max_side is None and opts.scale is None and cfg.max_side is not None:
-        opts = SourceOptions(**{**vars(opts), "max_side": cfg.max_side})
-    source = open_source(req.source, opts)
+    source, _ = open_configured(req.source, req.source_opts, cfg)
     frames = list(source)
     if not frames:
         raise UserError(f"source {req.source} gave no frames")
@@ -92,6 +90,7 @@ def run_map(req: MapRequest) -> Path:
         interrupted = True
         log.warning("interrupted: writing the outputs of the mapping so far")
     intr = frames[0].intrinsics
+    save_scene(out, cfg, model, beta)
     with timer.stage("sinks"):
         views = sorted(set(range(0, len(frames), max(1, req.render_every))) | {len(frames) - 1})
         for k, i in enumerate(views):
@@ -104,7 +103,7 @@ def run_map(req: MapRequest) -> Path:
         out, frames=len(frames), preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
         interrupted=interrupted, bound=bound, source=req.source,
         notes=[f"mapping with known poses ({req.poses}); scene bound from {bound.source}"],
-        intrinsics={k: getattr(intr, k) for k in ("fx", "fy", "cx", "cy", "width", "height")},
+        intrinsics=intrinsics_dict(intr),
         config=config_mod.to_dict(cfg),
         stats={"iterations": stats.iters if stats else 0, "final_loss": stats.loss if stats else None,
                "loss_terms": stats.terms if stats else {}},

@@ -12,7 +12,9 @@ import torch
 
 from nicer_stream import config as config_mod
 from nicer_stream.errors import UserError
+from nicer_stream.runtime.checkpoint import save_scene
 from nicer_stream.runtime.frame_priors import make_engine, provider_names
+from nicer_stream.runtime.pacer import Pacer
 from nicer_stream.runtime.prior_stage import PriorStage
 from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_trajectory
 from nicer_stream.runtime.scene_export import save_render, scene_mesh
@@ -20,7 +22,7 @@ from nicer_stream.runtime.stage_timer import StageTimer
 from nicer_stream.render.renderer import render_image
 from nicer_stream.slam.events import FrameTracked, KeyframeAdded, MapUpdated
 from nicer_stream.slam.system import SlamSystem
-from sources import open_source
+from nicer_stream.runtime.source_setup import intrinsics_dict, open_configured
 from sources.base import SourceOptions
 
 log = logging.getLogger(__name__)
@@ -43,35 +45,11 @@ class RunRequest:
     source_opts: SourceOptions = field(default_factory=SourceOptions)
 
 
-class _Pacer:
-    """--realtime: drop frames whose recorded time has already passed on the wall clock."""
-
-    def __init__(self, enabled: bool) -> None:
-        self.enabled, self.t0, self.s0, self.dropped = enabled, None, None, 0
-
-    def drop(self, timestamp: float) -> bool:
-        if not self.enabled:
-            return False
-        now = time.perf_counter()
-        if self.t0 is None:
-            self.t0, self.s0 = now, timestamp
-            return False
-        due = self.t0 + (timestamp - self.s0)
-        if now > due:
-            self.dropped += 1
-            return True
-        time.sleep(max(0.0, due - now))
-        return False
-
-
 def run_slam(req: RunRequest) -> Path:
     cfg = config_mod.load(req.preset, req.config_file)
     torch.manual_seed(cfg.seed)
     timer = StageTimer()
-    opts = req.source_opts
-    if opts.max_side is None and opts.scale is None and cfg.max_side is not None:
-        opts = SourceOptions(**{**vars(opts), "max_side": cfg.max_side})
-    source = open_source(req.source, opts)
+    source, _ = open_configured(req.source, req.source_opts, cfg)
     out = Path(req.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     engine = make_engine(req.priors, req.flow, req.device)
@@ -80,7 +58,7 @@ def run_slam(req: RunRequest) -> Path:
     from sinks import make_sink
 
     sink = make_sink(list(req.sinks)) if req.sinks else None
-    pacer = _Pacer(req.realtime)
+    pacer = Pacer(req.realtime)
     interrupted, n, intr, kept = False, 0, None, {}
     track_s = map_s = 0.0
     try:
@@ -122,6 +100,7 @@ def run_slam(req: RunRequest) -> Path:
             sink.close()
         raise UserError(f"source {req.source} gave no frames")
     times, poses = slam.trajectory()
+    save_scene(out, cfg, slam.model, slam.beta)
     with timer.stage("sinks"):
         write_trajectory(out, times, poses)
         poses_np = np.stack(poses)
@@ -147,7 +126,7 @@ def run_slam(req: RunRequest) -> Path:
     s = write_summary(
         out, frames=n, preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
         interrupted=interrupted, bound=slam.bound, source=req.source, notes=notes,
-        intrinsics={k: getattr(intr, k) for k in ("fx", "fy", "cx", "cy", "width", "height")},
+        intrinsics=intrinsics_dict(intr),
         config=config_mod.to_dict(cfg),
         stats={"keyframes": len(slam.keyframes), "lost_frames": slam.lost_frames, "dropped_frames": pacer.dropped,
                "tracking_s_per_frame": track_s / max(n, 1), "mapping_s_per_frame": map_s / max(n, 1),

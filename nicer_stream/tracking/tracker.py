@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import torch
 
@@ -33,7 +33,10 @@ class Tracker:
     """Reads the scene (never writes it): gradients flow to the pose twist only."""
 
     def __init__(self, model: SceneModel, beta: BetaField, cfg: TrackingConfig, render: RenderConfig, seed: int = 0) -> None:
-        self.model, self.beta, self.cfg, self.render = model, beta, cfg, render
+        self.model, self.beta, self.cfg = model, beta, cfg
+        # Tracking may use fewer samples: the surface is already known.
+        self.render = replace(render, **{k: getattr(cfg, k) for k in ("n_probe", "n_importance", "n_uniform")
+                                         if getattr(cfg, k) is not None})
         self.gen = torch.Generator().manual_seed(seed)
 
     def track(self, frame: MapFrame, T_init: torch.Tensor) -> TrackingResult:

@@ -101,3 +101,20 @@ def test_geometric_resolutions_eq2():
     bc = math.exp((math.log(2048) - math.log(16)) / 15)
     assert all(abs(r - 16 * bc**l) < 1.0 for l, r in enumerate(color))
     assert geometric_resolutions(32, 128, 1) == [32]
+
+
+def test_inference_cache_follows_fused_adam_steps():
+    """fused Adam does not bump `_version`: `invalidate()` must refresh the grid_sample cache."""
+    torch.manual_seed(0)
+    g = DenseGrids([8, 12], 3, init_std=0.1)
+    x = torch.rand(50, 3) * 2 - 1
+    with torch.no_grad():
+        g(x)  # fill the cache
+    opt = torch.optim.Adam(g.parameters(), lr=0.5, fused=True)
+    g.table.grad = torch.randn_like(g.table)
+    opt.step()
+    g.invalidate()
+    with torch.no_grad():
+        fast, _ = g(x)
+    slow, _ = g(x)  # autograd path: always reads the table
+    assert torch.allclose(fast, slow, atol=1e-5)

@@ -71,3 +71,22 @@ def test_slam_step_refuses_ground_truth():
     frame = next(iter(open_source("synthetic:room?frames=2", SourceOptions(max_side=32))))
     with pytest.raises(UserError, match="ground truth"):
         SlamSystem(load("fast")).step(frame)
+
+
+def test_run_with_prior_cache_equals_run_with_its_provider(tmp_path, tiny_config):
+    from typer.testing import CliRunner
+
+    from nicer_stream.cli.main import app
+
+    cache = tmp_path / "cache"
+    res = CliRunner().invoke(app, ["priors", "--source", "synthetic:room?frames=5", "--provider", "oracle",
+                                   "--flow", "oracle", "--flow-gap", "4", "--max-side", "48", "--out", str(cache)])
+    assert res.exit_code == 0, res.output
+    runs = {}
+    for name, pri, flow in (("direct", "oracle", "oracle"), ("cached", f"cache:{cache}", f"cache:{cache}")):
+        out = run_slam(RunRequest(source="synthetic:room?frames=5", out_dir=tmp_path / name, priors=pri, flow=flow,
+                                  config_file=str(tiny_config)))
+        runs[name] = read_tum(out / od.TRAJECTORY_FILE)[1]
+    assert np.array_equal(runs["direct"], runs["cached"])
+    summary = json.loads((tmp_path / "cached" / od.SUMMARY_FILE).read_text())
+    assert any("oracle" in p for p in summary["priors"])  # a cache of oracle priors stays labelled oracle

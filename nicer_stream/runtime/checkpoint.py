@@ -1,0 +1,32 @@
+"""scene.pt: the fitted scene (config, bound, model and beta-counter state) for re-rendering."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import torch
+
+from nicer_stream import config as config_mod
+from nicer_stream.config import SlamConfig
+from nicer_stream.model.bound import SceneBound
+from nicer_stream.model.scene import SceneModel
+from nicer_stream.render.beta import BetaField
+
+SCENE_FILE = "scene.pt"
+
+
+def save_scene(out_dir: Path, cfg: SlamConfig, model: SceneModel, beta: BetaField) -> Path:
+    path = Path(out_dir) / SCENE_FILE
+    torch.save({"config": config_mod.to_dict(cfg), "bound": model.bound.to_dict(),
+                "model": model.state_dict(), "beta": beta.state_dict()}, path)
+    return path
+
+
+def load_scene(path: Path, device: str = "cpu") -> tuple[SlamConfig, SceneModel, BetaField]:
+    data = torch.load(path, map_location=device, weights_only=True)
+    cfg = config_mod.override(config_mod.SlamConfig(), data["config"])
+    b = data["bound"]
+    model = SceneModel(cfg.model, SceneBound(tuple(b["centre"]), b["half_extent"], b["source"])).to(device)
+    model.load_state_dict(data["model"])
+    beta = BetaField(cfg.render).to(device)
+    beta.load_state_dict(data["beta"])
+    return cfg, model, beta

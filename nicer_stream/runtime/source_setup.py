@@ -1,0 +1,22 @@
+"""Opening a source with the preset's image size unless the user chose one."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+from nicer_stream.config import SlamConfig
+from nicer_stream.types import Intrinsics
+from sources import open_source
+from sources.base import FrameSource, SourceOptions
+
+
+def open_configured(uri: str, opts: SourceOptions, cfg: SlamConfig) -> tuple[FrameSource, SourceOptions]:
+    """The source at the preset's `max_side` when neither --max-side nor --scale was given;
+    returns the options actually used (evaluation must read frames the same way)."""
+    if opts.max_side is None and opts.scale is None and cfg.max_side is not None:
+        opts = replace(opts, max_side=cfg.max_side)
+    return open_source(uri, opts), opts
+
+
+def intrinsics_dict(intr: Intrinsics) -> dict:
+    """{fx, fy, cx, cy, width, height} for summary.json."""
+    return {k: getattr(intr, k) for k in ("fx", "fy", "cx", "cy", "width", "height")}
