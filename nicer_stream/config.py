@@ -235,8 +235,8 @@ def fast() -> SlamConfig:
         max_side=320,
         model=ModelConfig(color_levels=12, color_res_max=512, color_log2_table=17),
         render=RenderConfig(n_probe=48, n_importance=16, n_uniform=4, beta_count_weight=40.0),
-        mapping=MappingConfig(iters=60, first_iters=300, rays=1024, eikonal_points=256, batch_iters=500),
-        tracking=TrackingConfig(iters=30, rays=512, lr=3e-3),
+        mapping=MappingConfig(iters=40, first_iters=150, rays=1024, eikonal_points=256, batch_iters=400),
+        tracking=TrackingConfig(iters=30, rays=512, lr=3e-3, n_probe=32, n_importance=12, n_uniform=0),
         mesh=MeshConfig(resolution=192),
     )
 

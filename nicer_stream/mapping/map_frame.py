@@ -24,6 +24,9 @@ class MapFrame:
     depth_prior: torch.Tensor | None = None
     normal_prior: torch.Tensor | None = None
     flows: dict[int, tuple[torch.Tensor, torch.Tensor]] = field(default_factory=dict)
+    depth_scale_shift: tuple[float, float] | None = None
+    """(w, q) with depth_prior = w * metric_depth + q when known (then used instead of the
+    per-iteration least-squares fit)."""
 
     @staticmethod
     def from_frame(frame: Frame, priors: Priors | None, device: torch.device) -> "MapFrame":

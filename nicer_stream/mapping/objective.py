@@ -40,7 +40,8 @@ def mapping_terms(out: RenderOutput, layout: list[FrameRays], cfg: LossConfig,
         d = out.depth[sl]
         if f.depth_prior is not None:
             prior = f.depth_prior.reshape(-1)[fr.pix]
-            depth.append(mono_depth_loss(d, prior, (prior > 0) & torch.isfinite(prior), fixed_scale_shift))
+            fixed = f.depth_scale_shift or fixed_scale_shift
+            depth.append(mono_depth_loss(d, prior, (prior > 0) & torch.isfinite(prior), fixed))
         if f.normal_prior is not None:
             n_cam = out.normal[sl] @ fr.T_world_cam[:3, :3]  # R^T n in row form
             l1, ang = normal_loss(n_cam, f.normal_prior.reshape(-1, 3)[fr.pix])

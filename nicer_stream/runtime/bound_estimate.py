@@ -25,13 +25,18 @@ def bound_from_cameras(poses: np.ndarray, cfg: BoundConfig) -> SceneBound:
     return SceneBound(tuple(float(v) for v in c), cfg.half_extent, "cameras")
 
 
-def bound_from_depth(depth_m: np.ndarray, intr: Intrinsics, T_world_cam: np.ndarray, cfg: BoundConfig) -> SceneBound:
-    """From a metric(-ised) depth map (H, W) of one frame: its points plus the camera
-    centre, grown by `cfg.margin`."""
+def metric_points(depth_m: np.ndarray, intr: Intrinsics, T_world_cam: np.ndarray, cfg: BoundConfig) -> np.ndarray:
+    """(N, 3) world points of a metric(-ised) depth map (H, W) (depths in (0, max_depth_m))
+    plus the camera centre."""
     uv = pixel_grid(intr)
     d = torch.as_tensor(depth_m, dtype=torch.float32).reshape(-1)
     keep = (d > 0) & (d < cfg.max_depth_m) & torch.isfinite(d)
     p = unproject(uv[keep], d[keep], intr).numpy().astype(np.float64)
     p = p @ T_world_cam[:3, :3].T + T_world_cam[:3, 3]
-    p = np.concatenate([p, T_world_cam[None, :3, 3]])
-    return bound_from_points(p, cfg.margin, "depth_prior")
+    return np.concatenate([p, T_world_cam[None, :3, 3]])
+
+
+def bound_from_depth(depth_m: np.ndarray, intr: Intrinsics, T_world_cam: np.ndarray, cfg: BoundConfig) -> SceneBound:
+    """From a metric(-ised) depth map (H, W) of one frame: its points plus the camera
+    centre, grown by `cfg.margin`."""
+    return bound_from_points(metric_points(depth_m, intr, T_world_cam, cfg), cfg.margin, "depth_prior")

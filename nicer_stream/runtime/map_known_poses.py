@@ -12,10 +12,12 @@ from nicer_stream import config as config_mod
 from nicer_stream.errors import UserError
 from nicer_stream.io.trajectory import read_tum
 from nicer_stream.mapping.mapper import Mapper
+from nicer_stream.mapping.prior_alignment import align_frame_prior
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.runtime.checkpoint import save_scene
-from nicer_stream.runtime.bound_estimate import bound_from_cameras, bound_from_config
+from nicer_stream.model.bound import SceneBound, bound_from_points
+from nicer_stream.runtime.bound_estimate import bound_from_cameras, bound_from_config, metric_points
 from nicer_stream.runtime.frame_priors import make_engine, map_frame, provider_names
 from nicer_stream.runtime.progress import Progress
 from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_trajectory
@@ -58,6 +60,39 @@ def _poses(frames, spec: str) -> np.ndarray:
     return poses[: len(frames)]
 
 
+def _align_priors(mfs, poses) -> int:
+    """Metric (w, q) per frame from flow triangulation with the known poses, using the
+    partner with the widest baseline. Returns how many frames were aligned."""
+    by_index = {m.index: m for m in mfs}
+    n = 0
+    for m in mfs:
+        partners = [by_index[j] for j in m.flows if j in by_index]
+        if not partners:
+            continue
+        far = max(partners, key=lambda p: float((poses[p.index][:3, 3] - poses[m.index][:3, 3]).norm()))
+        m.depth_scale_shift = align_frame_prior(m, far, poses[m.index], poses[far.index])
+        n += m.depth_scale_shift is not None
+    return n
+
+
+def _bound(cfg, mfs, poses, poses_np) -> SceneBound:
+    """Config bound, else the metric-aligned priors' points (every 4th pixel of every frame)
+    with the configured margin, else a cube in front of the cameras."""
+    if cfg.bound.mode == "config":
+        return bound_from_config(cfg.bound)
+    pts = []
+    for m in mfs:
+        if m.depth_scale_shift is None:
+            continue
+        w, q = m.depth_scale_shift
+        depth = ((m.depth_prior - q) / w)[::4, ::4]
+        sub = m.intr.resized(depth.shape[1], depth.shape[0])
+        pts.append(metric_points(depth.cpu().numpy(), sub, poses[m.index].double().cpu().numpy(), cfg.bound))
+    if not pts:
+        return bound_from_cameras(poses_np, cfg.bound)
+    return bound_from_points(np.concatenate(pts), cfg.bound.margin, "depth_prior")
+
+
 def run_map(req: MapRequest) -> Path:
     cfg = config_mod.load(req.preset, req.config_file)
     timer = StageTimer()
@@ -74,10 +109,11 @@ def run_map(req: MapRequest) -> Path:
         # Flows to frames 2 and 5 steps away (both ways): parallax large enough to constrain depth.
         mfs = [map_frame(f, engine, [frames[j] for j in (i - 5, i - 2, i + 2, i + 5) if 0 <= j < len(frames)], req.device)
                for i, f in enumerate(frames)]
-    bound = bound_from_config(cfg.bound) if cfg.bound.mode == "config" else bound_from_cameras(poses_np, cfg.bound)
+    poses = {f.index: torch.tensor(poses_np[i], dtype=torch.float32, device=req.device) for i, f in enumerate(frames)}
+    aligned = _align_priors(mfs, poses)
+    bound = _bound(cfg, mfs, poses, poses_np)
     model = SceneModel(cfg.model, bound).to(req.device)
     beta = BetaField(cfg.render).to(req.device)
-    poses = {f.index: torch.tensor(poses_np[i], dtype=torch.float32, device=req.device) for i, f in enumerate(frames)}
     iters = req.iters or cfg.mapping.batch_iters
     interrupted = False
     stats = None
@@ -102,7 +138,8 @@ def run_map(req: MapRequest) -> Path:
     write_summary(
         out, frames=len(frames), preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
         interrupted=interrupted, bound=bound, source=req.source,
-        notes=[f"mapping with known poses ({req.poses}); scene bound from {bound.source}"],
+        notes=[f"mapping with known poses ({req.poses}); scene bound from {bound.source}",
+               f"depth prior aligned to metres by flow triangulation on {aligned}/{len(mfs)} frames"],
         intrinsics=intrinsics_dict(intr),
         config=config_mod.to_dict(cfg),
         stats={"iterations": stats.iters if stats else 0, "final_loss": stats.loss if stats else None,
