@@ -195,6 +195,8 @@ class MeshConfig:
 
     resolution: int = 512
     """Marching-cubes grid resolution per axis."""
+    visibility_margin_m: float = 0.1
+    """Faces further than this behind every rendered depth map are culled (never seen)."""
 
 
 @dataclass(frozen=True)
@@ -234,8 +236,8 @@ def fast() -> SlamConfig:
         preset="fast",
         max_side=320,
         model=ModelConfig(color_levels=12, color_res_max=512, color_log2_table=17),
-        render=RenderConfig(n_probe=48, n_importance=16, n_uniform=4, beta_count_weight=40.0),
-        mapping=MappingConfig(iters=40, first_iters=150, rays=1024, eikonal_points=256, batch_iters=400),
+        render=RenderConfig(n_probe=32, n_importance=12, n_uniform=4, beta_count_weight=50.0),
+        mapping=MappingConfig(iters=40, first_iters=150, rays=1024, eikonal_points=256, batch_iters=350),
         tracking=TrackingConfig(iters=30, rays=512, lr=3e-3, n_probe=32, n_importance=12, n_uniform=0),
         mesh=MeshConfig(resolution=192),
     )

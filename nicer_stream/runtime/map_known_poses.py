@@ -44,7 +44,7 @@ class MapRequest:
     iters: int | None = None
     minutes: float | None = None
     device: str = "cpu"
-    render_every: int = 5
+    render_every: int = 10
     source_opts: SourceOptions = SourceOptions()
 
 
@@ -134,7 +134,7 @@ def run_map(req: MapRequest) -> Path:
             save_render(out, frames[i].index, view, frames[i].rgb)
             print(f"render {k + 1}/{len(views)} (frame {frames[i].index})", flush=True)
         write_trajectory(out, [f.timestamp for f in frames], list(poses_np))
-        write_mesh(out, scene_mesh(model, beta, poses_np, intr, cfg.mesh.resolution))
+        write_mesh(out, scene_mesh(model, beta, poses_np, intr, cfg))
     write_summary(
         out, frames=len(frames), preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
         interrupted=interrupted, bound=bound, source=req.source,

@@ -11,6 +11,7 @@ import trimesh
 from nicer_stream.config import SlamConfig
 from nicer_stream.io.output_dir import RENDERS_DIR, render_name
 from nicer_stream.mesh import cull_to_frustums, extract_mesh
+from nicer_stream.mesh.visibility import DepthView, cull_occluded
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.render.renderer import RenderedImage, render_image
@@ -37,10 +38,24 @@ def render_view(model: SceneModel, beta: BetaField, T_world_cam: torch.Tensor, i
     return render_image(model, beta, T_world_cam, intr, cfg.render)
 
 
-def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intrinsics, resolution: int) -> trimesh.Trimesh:
+def depth_views(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intrinsics, cfg: SlamConfig,
+                max_views: int = 8, width: int = 80) -> list[DepthView]:
+    """Low-resolution rendered depth of up to `max_views` evenly spread poses (for culling)."""
+    small = intr.resized(width, max(1, round(intr.height * width / intr.width)))
+    idx = np.unique(np.linspace(0, len(poses) - 1, min(max_views, len(poses))).round().astype(int))
+    out = []
+    for i in idx:
+        view = render_image(model, beta, torch.as_tensor(poses[i], dtype=torch.float32), small, cfg.render)
+        out.append(DepthView(np.asarray(poses[i]), small, np.where(view.opacity > 0.5, view.depth, 0.0)))
+    return out
+
+
+def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intrinsics, cfg: SlamConfig) -> trimesh.Trimesh:
     """Marching cubes over the bound, evaluating the full SDF only in voxels the mapping
     sampled (elsewhere the map knows nothing: treated as free space), then culled to
-    the cameras' frustums. Vertex colours from the colour network."""
+    the cameras' frustums and to what the rendered depth says they see (no surfaces
+    behind walls). Vertex colours from the colour network."""
+    resolution = cfg.mesh.resolution
     lo, hi = model.bound.world_min_max()
     observed = beta.counts > 0
 
@@ -54,4 +69,7 @@ def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intr
 
     with torch.no_grad():
         mesh = extract_mesh(sdf_fn, model.color_world, lo, hi, resolution)
-    return cull_to_frustums(mesh, poses, intr) if len(mesh.faces) else mesh
+    if not len(mesh.faces):
+        return mesh
+    mesh = cull_to_frustums(mesh, poses, intr)
+    return cull_occluded(mesh, depth_views(model, beta, poses, intr, cfg), margin=cfg.mesh.visibility_margin_m)

@@ -41,7 +41,7 @@ class RunRequest:
     sinks: tuple[str, ...] = ()
     device: str = "cpu"
     realtime: bool = False
-    render_every: int = 5
+    render_every: int = 10
     source_opts: SourceOptions = field(default_factory=SourceOptions)
 
 
@@ -108,7 +108,7 @@ def run_slam(req: RunRequest) -> Path:
             if kept.get(i) is not None:
                 view = render_image(slam.model, slam.beta, torch.as_tensor(T, dtype=torch.float32), intr, cfg.render)
                 save_render(out, i, view, kept[i])
-        mesh = scene_mesh(slam.model, slam.beta, poses_np, intr, cfg.mesh.resolution)
+        mesh = scene_mesh(slam.model, slam.beta, poses_np, intr, cfg)
         write_mesh(out, mesh)
         if sink is not None:
             sink.log_trajectory(poses_np[:, :3, 3], rotations=poses_np[:, :3, :3])

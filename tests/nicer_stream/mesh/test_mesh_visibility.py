@@ -1,0 +1,26 @@
+"""Visibility culling keeps the wall a camera sees and drops what lies behind it."""
+import numpy as np
+import trimesh
+
+from nicer_stream.mesh.visibility import DepthView, cull_occluded, visible_vertices
+from nicer_stream.types import Intrinsics
+
+INTR = Intrinsics(50.0, 50.0, 31.5, 23.5, 64, 48)
+
+
+def _wall(z: float) -> trimesh.Trimesh:
+    return trimesh.Trimesh(vertices=[[-0.5, -0.5, z], [0.5, -0.5, z], [0.5, 0.5, z], [-0.5, 0.5, z]], faces=[[0, 1, 2], [0, 2, 3]])
+
+
+def test_front_wall_kept_hidden_wall_dropped():
+    view = DepthView(np.eye(4), INTR, np.full((48, 64), 2.0))
+    both = trimesh.util.concatenate([_wall(2.0), _wall(4.0)])
+    out = cull_occluded(both, [view], margin=0.1)
+    assert np.allclose(out.vertices[:, 2], 2.0)
+    assert len(out.faces) == 2
+
+
+def test_points_outside_the_image_or_behind_are_not_visible():
+    view = DepthView(np.eye(4), INTR, np.full((48, 64), 5.0))
+    pts = np.array([[0, 0, 1.0], [0, 0, -1.0], [10, 0, 1.0], [0, 0, 5.05], [0, 0, 5.5]])
+    assert visible_vertices(pts, [view], margin=0.1).tolist() == [True, False, False, True, False]
