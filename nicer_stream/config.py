@@ -103,6 +103,9 @@ class LossConfig:
     """Term weights (Eq. 12)."""
     warp_frames: int = 2
     """Other window frames each ray is warped into (warping and flow terms)."""
+    metric_prior_alignment: bool = True
+    """`map` (known poses): supervise depth with each frame's metric (w, q) from flow
+    triangulation; False refits (w, q) by least squares every iteration (Eq. 10)."""
     first_depth_median_m: float = 2.0
     """Scale rule of the first SLAM mapping: the first frame's depth-prior median is taken
     as this many metres (the paper's fixed w=20, q=0 assumes Omnidata's output range)."""

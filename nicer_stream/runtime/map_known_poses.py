@@ -60,31 +60,32 @@ def _poses(frames, spec: str) -> np.ndarray:
     return poses[: len(frames)]
 
 
-def _align_priors(mfs, poses) -> int:
-    """Metric (w, q) per frame from flow triangulation with the known poses, using the
-    partner with the widest baseline. Returns how many frames were aligned."""
+def _align_priors(mfs, poses) -> dict[int, tuple[float, float]]:
+    """Metric (w, q) per frame index from flow triangulation with the known poses, using
+    the partner with the widest baseline (frames that could not be aligned are absent)."""
     by_index = {m.index: m for m in mfs}
-    n = 0
+    aligned = {}
     for m in mfs:
         partners = [by_index[j] for j in m.flows if j in by_index]
         if not partners:
             continue
         far = max(partners, key=lambda p: float((poses[p.index][:3, 3] - poses[m.index][:3, 3]).norm()))
-        m.depth_scale_shift = align_frame_prior(m, far, poses[m.index], poses[far.index])
-        n += m.depth_scale_shift is not None
-    return n
+        wq = align_frame_prior(m, far, poses[m.index], poses[far.index])
+        if wq is not None:
+            aligned[m.index] = wq
+    return aligned
 
 
-def _bound(cfg, mfs, poses, poses_np) -> SceneBound:
+def _bound(cfg, mfs, aligned, poses, poses_np) -> SceneBound:
     """Config bound, else the metric-aligned priors' points (every 4th pixel of every frame)
     with the configured margin, else a cube in front of the cameras."""
     if cfg.bound.mode == "config":
         return bound_from_config(cfg.bound)
     pts = []
     for m in mfs:
-        if m.depth_scale_shift is None:
+        if m.index not in aligned:
             continue
-        w, q = m.depth_scale_shift
+        w, q = aligned[m.index]
         depth = ((m.depth_prior - q) / w)[::4, ::4]
         sub = m.intr.resized(depth.shape[1], depth.shape[0])
         pts.append(metric_points(depth.cpu().numpy(), sub, poses[m.index].double().cpu().numpy(), cfg.bound))
@@ -111,7 +112,10 @@ def run_map(req: MapRequest) -> Path:
                for i, f in enumerate(frames)]
     poses = {f.index: torch.tensor(poses_np[i], dtype=torch.float32, device=req.device) for i, f in enumerate(frames)}
     aligned = _align_priors(mfs, poses)
-    bound = _bound(cfg, mfs, poses, poses_np)
+    bound = _bound(cfg, mfs, aligned, poses, poses_np)
+    if cfg.loss.metric_prior_alignment:
+        for m in mfs:
+            m.depth_scale_shift = aligned.get(m.index)
     model = SceneModel(cfg.model, bound).to(req.device)
     beta = BetaField(cfg.render).to(req.device)
     iters = req.iters or cfg.mapping.batch_iters
@@ -139,7 +143,8 @@ def run_map(req: MapRequest) -> Path:
         out, frames=len(frames), preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
         interrupted=interrupted, bound=bound, source=req.source,
         notes=[f"mapping with known poses ({req.poses}); scene bound from {bound.source}",
-               f"depth prior aligned to metres by flow triangulation on {aligned}/{len(mfs)} frames"],
+               f"depth prior aligned to metres by flow triangulation on {len(aligned)}/{len(mfs)} frames"
+               + ("" if cfg.loss.metric_prior_alignment else " (for the bound only; the depth loss refits scale and shift)")],
         intrinsics=intrinsics_dict(intr),
         config=config_mod.to_dict(cfg),
         stats={"iterations": stats.iters if stats else 0, "final_loss": stats.loss if stats else None,

@@ -1,0 +1,85 @@
+"""Flow metrics in closed form, and DIS against GT flow (depth + poses) on the synthetic room."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from nicer_stream.eval.flow import end_point_error, epe_map, flow_error_report
+from nicer_stream.priors.dis_flow import DisFlowProvider
+from nicer_stream.priors.oracle import OracleFlow
+from sources import open_source
+from sources.base import SourceOptions
+
+SYNTH = "synthetic:room?frames=120"
+
+
+def test_identical_flows_have_zero_error():
+    f = np.random.default_rng(0).normal(size=(4, 5, 2)).astype(np.float32)
+    assert end_point_error(f, f) == 0.0
+    r = flow_error_report(f, np.ones((4, 5), bool), f, np.ones((4, 5), bool))
+    assert r.mean_epe == r.masked_epe == r.bad_fraction == 0.0 and r.n_bad == 0
+    assert math.isnan(r.bad_kept)  # no bad pixel: undefined, not "all removed"
+
+
+def test_constant_offset_gives_its_length():
+    gt = np.zeros((3, 4, 2), np.float32)
+    assert end_point_error(gt + np.array([3.0, 4.0], np.float32), gt) == pytest.approx(5.0)
+    assert epe_map(gt + np.array([0.0, -2.0], np.float32), gt) == pytest.approx(np.full((3, 4), 2.0))
+
+
+def test_masks_select_pixels():
+    gt = np.zeros((2, 4, 2), np.float32)
+    flow = gt.copy()
+    flow[:, :2, 0] = 10.0  # left half 10 px off, right half exact
+    left = np.zeros((2, 4), bool)
+    left[:, :2] = True
+    assert end_point_error(flow, gt, left) == pytest.approx(10.0)
+    assert end_point_error(flow, gt, ~left) == 0.0
+    assert math.isnan(end_point_error(flow, gt, np.zeros((2, 4), bool)))
+    gt_valid = np.ones((2, 4), bool)
+    gt_valid[0, 0] = False  # a GT-invalid bad pixel counts nowhere
+    kept = ~left
+    kept[1, 0] = True  # the mask keeps one of the 3 remaining bad pixels
+    r = flow_error_report(flow, kept, gt, gt_valid)
+    assert r.n_bad == 3 and r.bad_fraction == pytest.approx(3 / 7) and r.bad_kept == pytest.approx(1 / 3)
+    assert r.mean_epe == pytest.approx(30 / 7) and r.masked_epe == pytest.approx(10 / 5)
+    assert r.valid_fraction == pytest.approx(5 / 8) and r.gt_median_px == 0.0
+    with pytest.raises(ValueError):
+        epe_map(flow, gt[:, :3])
+
+
+def _dis_vs_gt(start: int, gap: int):
+    a, b = open_source(SYNTH, SourceOptions(start=start, stride=gap, max_frames=2, max_side=320))
+    ref = OracleFlow().flow(a, b)
+    fw, _ = DisFlowProvider().flow_both(a, b)
+    return flow_error_report(fw.flow, fw.valid, ref.flow, ref.valid)
+
+
+def test_dis_small_motion_synthetic():
+    """Frames 40 -> 41 (4.1 px median GT flow); measured: EPE 0.18 px, no pixel > 3 px, mask keeps 96%.
+
+    With no bad pixel the "mask removes > 3 px errors" check is vacuous here; see the next test.
+    """
+    r = _dis_vs_gt(40, 1)
+    print(r)
+    assert 2.0 < r.gt_median_px < 6.0
+    assert r.mean_epe < 0.4 and r.masked_epe <= r.mean_epe
+    assert r.bad_fraction < 0.005
+    assert r.valid_fraction > 0.5
+
+
+def test_dis_large_motion_synthetic_mask_removes_bad_pixels():
+    """Frames 30 -> 36 (19 px median): DIS fails on 13% of pixels (EPE 3.0 px), the mask keeps 12% of them.
+
+    Measured caveat (scripts/flow_benchmark.py --per-pair): at 9-17 px motion with 1-4%
+    bad pixels the mask keeps 45-70% of them, mostly next to depth discontinuities where
+    DIS smooths the flow consistently in both directions.
+    """
+    r = _dis_vs_gt(30, 6)
+    print(r)
+    assert r.gt_median_px > 10.0 and r.bad_fraction > 0.05  # hard enough for the mask to matter
+    assert r.mean_epe < 6.0 and r.masked_epe < 1.0
+    assert r.bad_kept < 0.3
+    assert r.valid_fraction > 0.5
