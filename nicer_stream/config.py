@@ -147,6 +147,9 @@ class MappingConfig:
     """Extra uniformly sampled points for the Eikonal term per iteration."""
     batch_iters: int = 2000
     """Iterations of `nicer-stream map` (all frames in one window, known poses)."""
+    batch_color_start: float = 0.25
+    """`map` only: fraction of its iterations after which the colour grids join. One long
+    call replaces SLAM's many short ones, so the last quarter alone is too little."""
 
 
 @dataclass(frozen=True)

@@ -46,12 +46,11 @@ class Mapper:
         self.gen = torch.Generator().manual_seed(seed)
         self.rng = random.Random(seed)
 
-    def _frozen(self, frac: float) -> set[str]:
-        m = self.cfg.mapping
+    def _frozen(self, frac: float, color_start: float) -> set[str]:
         frozen = set()
-        if frac < m.fine_start:
+        if frac < self.cfg.mapping.fine_start:
             frozen |= {"fine", "fine_mlp"}
-        if frac < m.ba_start:
+        if frac < color_start:
             frozen.add("color_grid")
         return frozen
 
@@ -64,14 +63,17 @@ class Mapper:
 
     def optimise(self, frames: list[MapFrame], poses: dict[int, torch.Tensor], iters: int,
                  ba_indices: set[int] = frozenset(), fixed_scale_shift: tuple[float, float] | None = None,
-                 progress=None, time_budget_s: float | None = None) -> MappingStats:
+                 progress=None, time_budget_s: float | None = None,
+                 color_start: float | None = None) -> MappingStats:
         """Run `iters` iterations over `frames`; poses of `ba_indices` are refined in the
         last stage and written back into `poses`. With `time_budget_s`, the iteration
-        count is cut after 3 timed iterations so the schedule fits the budget."""
+        count is cut after 3 timed iterations so the schedule fits the budget. The colour
+        grids join at fraction `color_start` (default: with the poses, `ba_start`)."""
         import time
 
         t0 = time.perf_counter()
         m = self.cfg.mapping
+        color_start = m.ba_start if color_start is None else color_start
         dev = frames[0].rgb.device
         xi = {i: torch.zeros(6, device=dev, requires_grad=True) for i in ba_indices}
         pose_opt = torch.optim.Adam(list(xi.values()), lr=m.lr_pose) if xi else None
@@ -95,7 +97,7 @@ class Mapper:
             if pose_opt is not None:
                 pose_opt.zero_grad(set_to_none=True)
             loss.backward()
-            frozen = self._frozen(frac)
+            frozen = self._frozen(frac, color_start)
             for name, group in zip(self.group_names, self.opt.param_groups):
                 if name in frozen:
                     for p in group["params"]:

@@ -125,7 +125,7 @@ def run_map(req: MapRequest) -> Path:
         with timer.stage("mapping"):
             stats = Mapper(model, beta, cfg, cfg.seed).optimise(
                 mfs, poses, iters, progress=Progress("mapping"),
-                time_budget_s=req.minutes * 60 if req.minutes else None)
+                time_budget_s=req.minutes * 60 if req.minutes else None, color_start=cfg.mapping.batch_color_start)
     except KeyboardInterrupt:
         interrupted = True
         log.warning("interrupted: writing the outputs of the mapping so far")

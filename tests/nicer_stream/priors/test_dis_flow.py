@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from nicer_stream.priors.dis_flow import DisFlowProvider, to_gray_u8
-from nicer_stream.priors.flow_consistency import in_image_mask
+from nicer_stream.priors.flow_consistency import consistency_mask, in_image_mask
 from nicer_stream.types import Frame, Intrinsics
 
 
@@ -61,8 +61,6 @@ def test_consistency_mask_rejects_corrupted_flow(rgb320):
     """Pixels whose backward flow was corrupted are rejected in the forward mask."""
     dst, _ = affine_pair(rgb320, (3.0, 1.0))
     fw, bw = DisFlowProvider().flow_both(_frame(0, rgb320), _frame(1, dst))
-    from nicer_stream.priors.flow_consistency import consistency_mask
-
     corrupted = bw.flow.copy()
     corrupted[:, : corrupted.shape[1] // 2] += 8.0  # left half of the destination is wrong
     mask = consistency_mask(fw.flow, corrupted)
@@ -83,7 +81,9 @@ def test_dis_on_real_replica_pair_against_oracle_flow(replica_dir):
     """Replica frames 0 -> 19 (about 9 px mean motion): DIS vs GT flow (depth + poses).
 
     Pixels next to depth edges are left out: there the nearest-resized GT depth
-    makes the reference flow itself unreliable.
+    makes the reference flow itself unreliable. Measured (320 px wide): mean EPE 1.19 px;
+    the round trip alone keeps 21% of the > 3 px pixels and 95% of the < 1 px ones
+    (masked EPE 0.67 px); with the motion-boundary rule 6% and 90% (0.55 px).
     """
     from nicer_stream.priors.oracle import OracleFlow
     from sources import open_source
@@ -91,7 +91,8 @@ def test_dis_on_real_replica_pair_against_oracle_flow(replica_dir):
 
     f0, f1 = open_source(f"replica:{replica_dir}", SourceOptions(stride=19, max_frames=2, max_side=320))
     ref = OracleFlow().flow(f0, f1)
-    fw = DisFlowProvider().flow(f0, f1)
+    fw, bw = DisFlowProvider().flow_both(f0, f1)
+    round_trip_only = consistency_mask(fw.flow, bw.flow, boundary=False)
     d = f0.gt_depth
     k = np.ones((5, 5), np.uint8)
     edge = cv2.dilate(d, k) > 1.05 * cv2.erode(d, k)
@@ -100,9 +101,14 @@ def test_dis_on_real_replica_pair_against_oracle_flow(replica_dir):
     bad, good = m & (epe > 3.0), m & (epe < 1.0)
     kept_bad = (bad & fw.valid).sum() / bad.sum()
     kept_good = (good & fw.valid).sum() / good.sum()
-    print(f"DIS Replica 0->19: mean EPE {epe[m].mean():.3f} px, on the valid mask {epe[m & fw.valid].mean():.3f} px, "
-          f"bad {bad.mean():.1%}, kept bad {kept_bad:.1%}, kept good {kept_good:.1%}")
+    kept_bad_rt = (bad & round_trip_only).sum() / bad.sum()
+    print(f"DIS Replica 0->19: mean EPE {epe[m].mean():.3f} px, on the valid mask {epe[m & fw.valid].mean():.3f} px "
+          f"(round trip only {epe[m & round_trip_only].mean():.3f} px), bad {bad.mean():.1%}, "
+          f"kept bad {kept_bad:.1%} (round trip only {kept_bad_rt:.1%}), kept good {kept_good:.1%}")
     assert bad.sum() > 100  # the pair is hard enough for the mask test to mean something
     assert epe[m].mean() < 2.0
     assert epe[m & fw.valid].mean() < epe[m].mean()
-    assert kept_bad < 0.3 and kept_good > 0.85
+    assert kept_bad < 0.15 and kept_good > 0.85
+    # The motion-boundary rule removes bad pixels the round trip keeps, without making the mask worse.
+    assert kept_bad < 0.6 * kept_bad_rt
+    assert epe[m & fw.valid].mean() <= epe[m & round_trip_only].mean()
