@@ -24,14 +24,15 @@ def map_command(
     start: int = typer.Option(0, "--start"),
     max_frames: int = typer.Option(None, "--max-frames"),
     intrinsics: str = typer.Option(None, "--intrinsics", help="fx,fy,cx,cy at the original image size."),
+    render_every: int = typer.Option(None, "--render-every", help="Render and evaluate every N-th frame (default: at most 20 views, spread evenly)."),
 ) -> None:
     """Fit the neural scene to frames with known poses; writes trajectory, mesh, renders, summary (and eval.json with GT)."""
     user_errors(_run)(source, out, poses, priors, flow, preset, config, iters, minutes, device, max_side, stride, start,
-                      max_frames, intrinsics)
+                      max_frames, intrinsics, render_every)
 
 
 def _run(source, out, poses, priors, flow, preset, config, iters, minutes, device, max_side, stride, start, max_frames,
-         intrinsics) -> None:
+         intrinsics, render_every) -> None:
     from nicer_stream.cli.run_report import evaluate_and_print
     from nicer_stream.runtime.map_known_poses import MapRequest, run_map
     from sources.base import SourceOptions
@@ -39,5 +40,6 @@ def _run(source, out, poses, priors, flow, preset, config, iters, minutes, devic
     opts = SourceOptions(start=start, stride=stride, max_frames=max_frames, max_side=max_side,
                          intrinsics=parse_intrinsics(intrinsics))
     out_dir = run_map(MapRequest(source=source, out_dir=out, poses=poses, priors=priors, flow=flow, preset=preset,
-                                 config_file=config, iters=iters, minutes=minutes, device=device, source_opts=opts))
+                                 config_file=config, iters=iters, minutes=minutes, device=device, render_every=render_every,
+                                 source_opts=opts))
     evaluate_and_print(out_dir, source, opts)

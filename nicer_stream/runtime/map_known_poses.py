@@ -44,7 +44,8 @@ class MapRequest:
     iters: int | None = None
     minutes: float | None = None
     device: str = "cpu"
-    render_every: int = 10
+    render_every: int | None = None
+    """Render (and evaluate) every N-th frame; None: at most 20 views spread evenly."""
     source_opts: SourceOptions = SourceOptions()
 
 
@@ -132,7 +133,8 @@ def run_map(req: MapRequest) -> Path:
     intr = frames[0].intrinsics
     save_scene(out, cfg, model, beta)
     with timer.stage("sinks"):
-        views = sorted(set(range(0, len(frames), max(1, req.render_every))) | {len(frames) - 1})
+        every = req.render_every or -(-len(frames) // 20)
+        views = sorted(set(range(0, len(frames), max(1, every))) | {len(frames) - 1})
         for k, i in enumerate(views):
             view = render_image(model, beta, poses[frames[i].index], intr, cfg.render)
             save_render(out, frames[i].index, view, frames[i].rgb)
