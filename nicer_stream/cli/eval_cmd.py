@@ -12,6 +12,7 @@ _ROWS = [
     ("ATE RMSE Sim(3)", "ate_rmse_m", "m"),
     ("ATE RMSE SE(3)", "ate_se3_rmse_m", "m"),
     ("Sim(3) scale", "sim3_scale", ""),
+    ("scene scale", "scene_scale", ""),
     ("RPE trans", "rpe_trans_m", "m"),
     ("RPE rot", "rpe_rot_deg", "deg"),
     ("depth L1", "depth_l1_m", "m"),

@@ -23,10 +23,11 @@ def run_command(
     intrinsics: str = typer.Option(None, "--intrinsics", help="fx,fy,cx,cy at the original image size."),
     realtime: bool = typer.Option(False, "--realtime", help="Play the log at its recorded rate, dropping frames SLAM cannot keep up with."),
     device: str = typer.Option("cpu", "--device", help="torch device, e.g. cpu or cuda."),
+    render_every: int = typer.Option(10, "--render-every", help="Render (and evaluate) every N-th frame at the end; their images are kept until then."),
 ) -> None:
     """Track every frame and map keyframes; writes trajectory.tum, mesh.ply, summary.json (+ eval.json with GT)."""
     user_errors(_run)(source, out, preset, config, priors, flow, sink, max_frames, stride, start, max_side, intrinsics,
-                      realtime, device)
+                      realtime, device, render_every)
 
 
 def _resolve_sinks(sinks: list[str], out: Path) -> tuple[str, ...]:
@@ -44,7 +45,7 @@ def _resolve_sinks(sinks: list[str], out: Path) -> tuple[str, ...]:
 
 
 def _run(source, out, preset, config, priors, flow, sinks, max_frames, stride, start, max_side, intrinsics, realtime,
-         device) -> None:
+         device, render_every) -> None:
     from nicer_stream.cli.run_report import evaluate_and_print
     from nicer_stream.runtime.slam_run import RunRequest, run_slam
     from sources.base import SourceOptions
@@ -52,5 +53,6 @@ def _run(source, out, preset, config, priors, flow, sinks, max_frames, stride, s
     opts = SourceOptions(start=start, stride=stride, max_frames=max_frames, max_side=max_side,
                          intrinsics=parse_intrinsics(intrinsics))
     out_dir = run_slam(RunRequest(source=source, out_dir=out, priors=priors, flow=flow, preset=preset, config_file=config,
-                                  sinks=_resolve_sinks(sinks, out), device=device, realtime=realtime, source_opts=opts))
+                                  sinks=_resolve_sinks(sinks, out), device=device, realtime=realtime,
+                                  render_every=render_every, source_opts=opts))
     evaluate_and_print(out_dir, source, opts)

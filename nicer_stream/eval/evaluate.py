@@ -81,7 +81,8 @@ def _match(est_t: np.ndarray, frame_t: np.ndarray, tol: float = 5e-4) -> np.ndar
 
 
 def _trajectory_metrics(rep: od.EvalReport, est: np.ndarray, gt: np.ndarray) -> trajectory.Sim3 | None:
-    """Fill ATE/RPE fields; returns the Sim(3) alignment (None if < 2 poses)."""
+    """Fill ATE/RPE fields; returns the Sim(3) that brings the estimated scene (depth,
+    mesh) into the GT world (`trajectory.pose_sim3`), None if < 2 poses."""
     if len(est) < 2:
         return None
     sim = trajectory.ate(est, gt, with_scale=True)
@@ -89,7 +90,9 @@ def _trajectory_metrics(rep: od.EvalReport, est: np.ndarray, gt: np.ndarray) -> 
     rep.ate_se3_rmse_m = trajectory.ate(est, gt, with_scale=False).rmse_m
     r = trajectory.rpe(est, gt, delta=1, scale=sim.alignment.scale)
     rep.rpe_trans_m, rep.rpe_rot_deg = r.trans_rmse_m, r.rot_rmse_deg
-    return sim.alignment
+    scene = trajectory.pose_sim3(est, gt)
+    rep.scene_scale = scene.scale
+    return scene
 
 
 def _image_metrics(rep: od.EvalReport, views: list[_View], scale: float | None) -> None:

@@ -59,6 +59,29 @@ def umeyama(src: np.ndarray, dst: np.ndarray, with_scale: bool = True) -> Sim3:
     return Sim3(R=R, t=t, scale=scale)
 
 
+def pose_sim3(est: np.ndarray, gt: np.ndarray) -> Sim3:
+    """Sim(3) for comparing scenes (depth, meshes): rotation from the camera orientations,
+    scale and translation from the centres given that rotation.
+
+    est, gt: (N, 4, 4) T_world_cam. Umeyama on centres alone leaves the rotation about a
+    short, nearly straight path undetermined (a 20 cm clip): a small trajectory error
+    then turns the whole mesh. R is the chordal mean of R_gt_i R_est_i^T (SVD
+    projection); s = sum <R x_i, y_i> / sum |x_i|^2 over centred centres (1 if they do
+    not move); t = mean(y) - s R mean(x).
+    """
+    est, gt = np.asarray(est, np.float64), np.asarray(gt, np.float64)
+    M = np.einsum("nij,nkj->ik", gt[:, :3, :3], est[:, :3, :3])  # sum R_gt R_est^T
+    U, _, Vt = np.linalg.svd(M)
+    S = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    R = U @ S @ Vt
+    x, y = est[:, :3, 3], gt[:, :3, 3]
+    xc, yc = x - x.mean(0), y - y.mean(0)
+    var = float((xc * xc).sum())
+    scale = float(((xc @ R.T) * yc).sum() / var) if var > 1e-18 else 1.0
+    scale = scale if scale > 0 else 1.0
+    return Sim3(R=R, t=y.mean(0) - scale * R @ x.mean(0), scale=scale)
+
+
 @dataclass(frozen=True)
 class AteResult:
     """ATE after alignment: `rmse_m` over (N,) per-frame `errors_m` (metres)."""

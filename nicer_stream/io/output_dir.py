@@ -120,6 +120,9 @@ class EvalReport:
     ssim: float | None = None
     priors: list[str] = field(default_factory=list)
     sim3_scale: float | None = None
+    scene_scale: float | None = None
+    """Scale of the Sim(3) that compares depth and meshes: rotation from the camera
+    orientations, scale and translation from the centres (eval/trajectory.pose_sim3)."""
     evaluated_views: EvaluatedViews = field(default_factory=EvaluatedViews)
     mesh: MeshReport = field(default_factory=MeshReport)
 

@@ -70,3 +70,22 @@ def align_frame_prior(frame, partner, T_world_src: torch.Tensor, T_world_dst: to
     prior = frame.depth_prior.reshape(-1).double()
     ok &= valid.reshape(-1) & (prior > 0) & torch.isfinite(prior)
     return robust_affine_fit(prior[ok], z[ok])
+
+
+@torch.no_grad()
+def align_prior_to_map(frame, T_world_cam: torch.Tensor, model, beta, render_cfg, step: int = 4):
+    """(w, q) of `frame.depth_prior` (a MapFrame) against the depth the current map renders
+    at `T_world_cam` on every `step`-th pixel, or None. Fixing them once when a frame is
+    first mapped keeps every frame at the map's scale (the per-iteration fit of Eq. 10
+    lets scale and shift follow whatever the rendered depth does)."""
+    from nicer_stream.geometry.camera import pixel_grid
+    from nicer_stream.render.renderer import render_rays, rays_for_pixels
+
+    if frame.depth_prior is None:
+        return None
+    h, w = frame.intr.height, frame.intr.width
+    uv = pixel_grid(frame.intr, device=frame.rgb.device).reshape(h, w, 2)[::step, ::step].reshape(-1, 2)
+    out = render_rays(model, beta, rays_for_pixels(uv, frame.intr, T_world_cam), render_cfg, jitter=False)
+    prior = frame.depth_prior[uv[:, 1].long(), uv[:, 0].long()]
+    ok = (prior > 0) & torch.isfinite(prior) & (out.opacity > 0.9) & (out.depth > 0)
+    return robust_affine_fit(prior[ok], out.depth[ok])

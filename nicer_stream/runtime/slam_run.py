@@ -59,7 +59,7 @@ def run_slam(req: RunRequest) -> Path:
 
     sink = make_sink(list(req.sinks)) if req.sinks else None
     pacer = Pacer(req.realtime)
-    interrupted, n, intr, kept = False, 0, None, {}
+    interrupted, n, intr, kept, last = False, 0, None, {}, None
     track_s = map_s = 0.0
     try:
         for frame in source:
@@ -82,6 +82,7 @@ def run_slam(req: RunRequest) -> Path:
                     stage.add_keyframe(frame)
                 if isinstance(e, FrameTracked):
                     kept[e.index] = frame.rgb if e.index % max(1, req.render_every) == 0 else None
+                    last = (e.index, frame.rgb)
                     lost = f" LOST ({e.lost})" if e.lost else ""
                     print(f"frame {e.index:5d}  track loss {e.loss:.4f}  {step_s:.1f} s{lost}", flush=True)
                     if sink is not None:
@@ -99,6 +100,8 @@ def run_slam(req: RunRequest) -> Path:
         if sink is not None:
             sink.close()
         raise UserError(f"source {req.source} gave no frames")
+    if last is not None:  # the last frame is always rendered, as in `map`
+        kept[last[0]] = last[1]
     times, poses = slam.trajectory()
     save_scene(out, cfg, slam.model, slam.beta)
     with timer.stage("sinks"):
@@ -120,7 +123,8 @@ def run_slam(req: RunRequest) -> Path:
             sink.close()
     notes = [f"scene bound from {slam.bound.source}"]
     if slam.scale_rule:
-        notes.append(f"metric scale: first frame's depth-prior median taken as {cfg.loss.first_depth_median_m} m")
+        notes.append(f"metric scale: first frame's depth-prior median taken as {cfg.loss.first_depth_median_m} m, "
+                     f"its shift {slam.scale_rule[1]:.4g} from the normal prior")
     if pacer.dropped:
         notes.append(f"--realtime dropped {pacer.dropped} frames (not in trajectory.tum)")
     s = write_summary(

@@ -14,7 +14,9 @@ import torch
 
 from nicer_stream.config import SlamConfig
 from nicer_stream.mapping.map_frame import MapFrame
+from nicer_stream.mapping.depth_shift import shift_from_normals
 from nicer_stream.mapping.mapper import Mapper
+from nicer_stream.mapping.prior_alignment import align_frame_prior, align_prior_to_map
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
@@ -29,10 +31,22 @@ from nicer_stream.types import Frame, Priors
 log = logging.getLogger(__name__)
 
 
+def first_scale_shift(mf: MapFrame, median_m: float) -> tuple[float, float]:
+    """(w, q) of the first frame's depth prior (prior = w * depth + q): q from the normal
+    prior's agreement (0 without one), w so that the median depth is `median_m` metres."""
+    q = 0.0
+    if mf.normal_prior is not None:
+        q = shift_from_normals(mf.depth_prior.cpu().numpy(), mf.normal_prior.cpu().numpy(), mf.intr)
+    valid = mf.depth_prior[mf.depth_prior > q]
+    return float((valid - q).median()) / median_m, q
+
+
 class SlamSystem:
     """Owns the scene, the optimisers, keyframes and the trajectory."""
 
     def __init__(self, cfg: SlamConfig, device: str = "cpu") -> None:
+        if cfg.loss.slam_prior_alignment not in ("lstsq", "map", "flow"):
+            raise UserError(f"loss.slam_prior_alignment must be lstsq, map or flow, got {cfg.loss.slam_prior_alignment!r}")
         self.cfg, self.device = cfg, torch.device(device)
         self.rng = random.Random(cfg.seed)
         self.model: SceneModel | None = None
@@ -89,10 +103,9 @@ class SlamSystem:
         self.poses[mf.index] = T0
         cfg = self.cfg
         if mf.depth_prior is not None and cfg.bound.mode == "auto":
-            valid = mf.depth_prior[mf.depth_prior > 0]
-            w = float(valid.median()) / cfg.loss.first_depth_median_m
-            self.scale_rule = (w, 0.0)
-            depth_m = (mf.depth_prior / w).cpu().numpy()
+            self.scale_rule = first_scale_shift(mf, cfg.loss.first_depth_median_m)
+            w, q = self.scale_rule
+            depth_m = ((mf.depth_prior - q) / w).clamp_min(0).cpu().numpy()
             self.bound = bound_from_depth(depth_m, mf.intr, T0.cpu().numpy().astype(np.float64), cfg.bound)
         else:
             self.bound = bound_from_config(cfg.bound)
@@ -101,7 +114,11 @@ class SlamSystem:
         self.mapper = Mapper(self.model, self.beta, cfg, cfg.seed)
         self.tracker = Tracker(self.model, self.beta, cfg.tracking, cfg.render, cfg.seed)
         self.frames[mf.index] = mf
-        stats = self.mapper.optimise([mf], self.poses, cfg.mapping.first_iters, fixed_scale_shift=self.scale_rule)
+        # One long call from the sphere, like `map`: the colour grids join early.
+        stats = self.mapper.optimise([mf], self.poses, cfg.mapping.first_iters, fixed_scale_shift=self.scale_rule,
+                                     color_start=cfg.mapping.batch_color_start)
+        if cfg.loss.slam_prior_alignment == "map":
+            mf.depth_scale_shift = self.scale_rule
         return [
             FrameTracked(mf.index, mf.timestamp, T0.double().cpu().numpy(), 0.0, 0.0),
             MapUpdated(mf.index, (mf.index,), stats.loss, stats.iters, stats.seconds),
@@ -139,8 +156,28 @@ class SlamSystem:
         window = select_window(self.keyframes, current, self.cfg.mapping, self.rng)
         anchor = self.order[0]
         ba = ba_frames(window, current, anchor) if self.cfg.mapping.ba_start < 1.0 else set()
+        mode = self.cfg.loss.slam_prior_alignment
+        if mode == "map":
+            for k in window:
+                f = self.frames[k]
+                if f.depth_scale_shift is None:
+                    f.depth_scale_shift = align_prior_to_map(f, self.poses[k], self.model, self.beta, self.cfg.render)
+        elif mode == "flow":
+            self._align_by_flow(window)
         stats = self.mapper.optimise([self.frames[k] for k in window], self.poses, iters, ba_indices=ba)
         return MapUpdated(current, tuple(window), stats.loss, stats.iters, stats.seconds)
+
+    def _align_by_flow(self, window: list[int]) -> None:
+        """(w, q) of each window frame by flow triangulation with the current pose estimates
+        (the widest-baseline partner it has a flow to); frames without one keep the fit."""
+        for k in window:
+            f = self.frames[k]
+            partners = [j for j in f.flows if j in self.frames]
+            if not partners:
+                continue
+            far = max(partners, key=lambda j: float((self.poses[j][:3, 3] - self.poses[k][:3, 3]).norm()))
+            wq = align_frame_prior(f, self.frames[far], self.poses[k], self.poses[far])
+            f.depth_scale_shift = wq if wq is not None else f.depth_scale_shift
 
     def _store(self, mf: MapFrame) -> None:
         """Keep keyframes and the latest frame; drop the previous non-keyframe."""
@@ -148,6 +185,9 @@ class SlamSystem:
         for k in list(self.frames):
             if k != mf.index and k not in self.keyframes and k != self.order[0]:
                 del self.frames[k]
+        for f in self.frames.values():  # flows to dropped frames would pile up in keyframes
+            for j in [j for j in f.flows if j not in self.frames]:
+                del f.flows[j]
 
     # -- results ---------------------------------------------------------------------
     def trajectory(self) -> tuple[list[float], list[np.ndarray]]:

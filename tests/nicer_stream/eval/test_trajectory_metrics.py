@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from nicer_stream.eval.trajectory import Sim3, ate, relative_errors, rpe, umeyama
+from nicer_stream.eval.trajectory import Sim3, ate, pose_sim3, relative_errors, rpe, umeyama
 from nicer_stream.geometry.se3 import se3_exp, so3_exp
 
 
@@ -108,3 +108,34 @@ def test_rpe_known_perturbation():
     assert np.all(rot[[i for i in range(len(rot)) if i not in (k - 1, k)]] < 1e-7)
     r = rpe(est, gt)
     assert r.rot_rmse_deg == pytest.approx(2.0 * np.sqrt(2 / 9), rel=1e-6)
+
+
+def test_pose_sim3_recovers_known_sim3():
+    rng = np.random.default_rng(7)
+    est = random_path(rng)
+    true = sim3_of(rng, with_scale=True)
+    got = pose_sim3(est, true.apply_poses(est))
+    np.testing.assert_allclose(got.R, true.R, atol=1e-9)
+    np.testing.assert_allclose(got.t, true.t, atol=1e-9)
+    assert got.scale == pytest.approx(true.scale, rel=1e-9)
+
+
+def test_pose_sim3_fixes_the_rotation_that_a_straight_path_leaves_free():
+    """Camera centres on a line with 2 mm of noise: Umeyama's rotation about the line is
+    arbitrary, the orientations pin it down."""
+    rng = np.random.default_rng(8)
+    n = 20
+    gt = np.tile(np.eye(4), (n, 1, 1))
+    gt[:, :3, :3] = random_rotation(rng)
+    gt[:, :3, 3] = np.linspace(0, 0.2, n)[:, None] * np.array([1.0, 0.0, 0.0])
+    true = sim3_of(rng, with_scale=True)
+    est = Sim3(true.R.T, -true.R.T @ true.t / true.scale, 1 / true.scale).apply_poses(gt)  # inverse map
+    est[:, :3, 3] += rng.normal(size=(n, 3)) * 0.002 / true.scale
+    angle = lambda R: np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1)))
+    assert angle(pose_sim3(est, gt).R @ true.R.T) < 0.5
+    assert angle(umeyama(est[:, :3, 3], gt[:, :3, 3]).R @ true.R.T) > 5.0
+
+
+def test_pose_sim3_static_camera_keeps_unit_scale():
+    T = np.tile(np.eye(4), (5, 1, 1))
+    assert pose_sim3(T, T).scale == 1.0

@@ -47,3 +47,25 @@ def test_tracker_recovers_perturbed_pose(tiny_config):
     assert res.loss <= res.initial_loss
     assert t1 < 0.5 * t0, (t0, t1)
     assert r1 < 0.7 * r0, (r0, r1)
+
+
+def test_observed_mask_keeps_rays_ending_in_mapped_voxels():
+    """Inside the initial sphere every ray ends at radius 0.9: only those ending in the
+    counted half-space (x < 0) are kept; with nothing counted, all rays are used."""
+    cfg = load("fast")
+    model = SceneModel(replace(cfg.model, color_levels=4, color_res_max=64, color_log2_table=12),
+                       SceneBound((0.0, 0.0, 0.0), 2.0, "config"))
+    beta = BetaField(cfg.render)
+    tracker = Tracker(model, beta, replace(cfg.tracking, min_count=100.0), cfg.render)
+    from nicer_stream.render.renderer import RayBatch, render_rays
+
+    dirs = torch.nn.functional.normalize(torch.randn(64, 3), dim=-1)
+    dirs = dirs[dirs[:, 0].abs() > 0.2]
+    rays = RayBatch(torch.zeros_like(dirs), dirs, torch.ones(len(dirs)))
+    with torch.no_grad():
+        out = render_rays(model, beta, rays, cfg.render, jitter=False)
+    assert tracker._observed(rays, out) is None  # nothing mapped yet: no mask
+    n = cfg.render.beta_voxels
+    beta.counts.view(n, n, n)[: n // 2] = 1000.0  # voxel index i*n*n + ...: first axis is x
+    mask = tracker._observed(rays, out)
+    assert torch.equal(mask, dirs[:, 0] < 0)
