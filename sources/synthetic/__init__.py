@@ -41,6 +41,10 @@ class SyntheticSource(FrameSource):
         self.poses = scene.trajectory(n_frames)
         self.name = f"synthetic-{scene.name}-s{scene.seed}"
 
+    def gt_mesh(self):
+        """The scene's ground-truth mesh (trimesh, world metres), for evaluation only."""
+        return self.scene.gt_mesh()
+
     def __len__(self) -> int:
         return len(self.opts.selected(self.n_frames))
 

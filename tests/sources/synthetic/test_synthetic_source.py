@@ -77,3 +77,11 @@ def test_bad_uri_gives_one_line_source_error(uri):
         open_source(uri)
     msg = str(e.value)
     assert msg and "\n" not in msg and "synthetic" in msg
+
+
+def test_source_exposes_the_gt_mesh_for_evaluation():
+    src = open_source("synthetic:room?frames=4")
+    mesh = src.gt_mesh()
+    lo, hi = src.scene.bounds()
+    assert len(mesh.faces) > 100
+    assert (mesh.vertices >= lo - 1e-6).all() and (mesh.vertices <= hi + 1e-6).all()
