@@ -1,5 +1,5 @@
 """Camera tracking (Sec. 3.3): optimise one frame's pose against the frozen scene
-with the RGB L1 loss on pixels redrawn every iteration; keep the best pose."""
+with the RGB L1 loss on pixels redrawn every iteration; keep the best (or last) pose."""
 from __future__ import annotations
 
 import math
@@ -21,7 +21,9 @@ from nicer_stream.render.renderer import render_rays, rays_for_pixels
 
 @dataclass
 class TrackingResult:
-    """T_world_cam (4, 4) of the lowest-loss iteration, that loss, the first loss, seconds."""
+    """T_world_cam (4, 4) chosen by `TrackingConfig.keep` (the lowest-loss iteration's, or
+    the final iterate), the lowest loss seen (the failure checks compare it), the first loss,
+    iterations, seconds."""
 
     T_world_cam: torch.Tensor
     loss: float
