@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The measurements named in the issues (long: run one at a time on a 2-core CPU).
-# Usage: scripts/benchmarks.sh [map|map-none|map-synth|run|run-none|run-synth|run10] [OUTROOT]
+# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-none|run-synth|run10|flow] [OUTROOT]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 NS=.venv/bin/nicer-stream
@@ -10,11 +10,12 @@ t() { /usr/bin/time -f "wall %e s, peak RSS %M KB" "$@"; }
 case "${1:-all}" in
   map)       t $NS map --source $REPLICA --poses gt --priors oracle --preset fast --out $OUT/map_oracle ;;
   map-none)  t $NS map --source $REPLICA --poses gt --priors none --preset fast --out $OUT/map_none ;;
-  map-paper) t $NS map --source $REPLICA --poses gt --priors oracle --preset paper --minutes 15 --out $OUT/map_paper ;;
+  map-paper) t $NS map --source $REPLICA --poses gt --priors oracle --preset paper --minutes 15 --max-side 320 --render-every 20 --out $OUT/map_paper320 ;;
+  flow)      .venv/bin/python scripts/flow_benchmark.py ;;
   map-synth) t $NS map --source "synthetic:room?frames=60" --poses gt --priors oracle --preset fast --out $OUT/map_synth ;;
   run)       t $NS run --source $REPLICA --priors oracle --preset fast --out $OUT/run_oracle ;;
   run-none)  t $NS run --source $REPLICA --priors none --preset fast --out $OUT/run_none ;;
   run10)     t $NS run --source $REPLICA --priors oracle --preset fast --max-frames 10 --out $OUT/run10_fast ;;
   run-synth) t $NS run --source "synthetic:room?frames=100" --priors oracle --preset fast --out $OUT/run_synth ;;
-  *) echo "usage: $0 map|map-none|map-paper|map-synth|run|run-none|run10|run-synth [OUTROOT]"; exit 2 ;;
+  *) echo "usage: $0 map|map-none|map-paper|map-synth|run|run-none|run10|run-synth|flow [OUTROOT]"; exit 2 ;;
 esac
