@@ -72,6 +72,17 @@ def align_frame_prior(frame, partner, T_world_src: torch.Tensor, T_world_dst: to
     return robust_affine_fit(prior[ok], z[ok])
 
 
+def align_to_widest_partner(frame, frames: dict, poses: dict):
+    """(w, q) of `frame` (a MapFrame) by `align_frame_prior` against the frame of `frames`
+    (index -> MapFrame) it has a flow to whose centre is farthest from its own, under
+    `poses` (index -> T_world_cam); None without a partner or a fit."""
+    partners = [j for j in frame.flows if j in frames]
+    if not partners:
+        return None
+    far = max(partners, key=lambda j: float((poses[j][:3, 3] - poses[frame.index][:3, 3]).norm()))
+    return align_frame_prior(frame, frames[far], poses[frame.index], poses[far])
+
+
 @torch.no_grad()
 def align_prior_to_map(frame, T_world_cam: torch.Tensor, model, beta, render_cfg, step: int = 4):
     """(w, q) of `frame.depth_prior` (a MapFrame) against the depth the current map renders

@@ -12,7 +12,7 @@ from nicer_stream import config as config_mod
 from nicer_stream.errors import UserError
 from nicer_stream.io.trajectory import read_tum
 from nicer_stream.mapping.mapper import Mapper
-from nicer_stream.mapping.prior_alignment import align_frame_prior
+from nicer_stream.mapping.prior_alignment import align_to_widest_partner
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.runtime.checkpoint import save_scene
@@ -67,11 +67,7 @@ def _align_priors(mfs, poses) -> dict[int, tuple[float, float]]:
     by_index = {m.index: m for m in mfs}
     aligned = {}
     for m in mfs:
-        partners = [by_index[j] for j in m.flows if j in by_index]
-        if not partners:
-            continue
-        far = max(partners, key=lambda p: float((poses[p.index][:3, 3] - poses[m.index][:3, 3]).norm()))
-        wq = align_frame_prior(m, far, poses[m.index], poses[far.index])
+        wq = align_to_widest_partner(m, by_index, poses)
         if wq is not None:
             aligned[m.index] = wq
     return aligned

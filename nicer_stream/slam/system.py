@@ -16,7 +16,7 @@ from nicer_stream.config import SlamConfig
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.depth_shift import shift_from_normals
 from nicer_stream.mapping.mapper import Mapper
-from nicer_stream.mapping.prior_alignment import align_frame_prior, align_prior_to_map
+from nicer_stream.mapping.prior_alignment import align_prior_to_map, align_to_widest_partner
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
@@ -172,11 +172,7 @@ class SlamSystem:
         (the widest-baseline partner it has a flow to); frames without one keep the fit."""
         for k in window:
             f = self.frames[k]
-            partners = [j for j in f.flows if j in self.frames]
-            if not partners:
-                continue
-            far = max(partners, key=lambda j: float((self.poses[j][:3, 3] - self.poses[k][:3, 3]).norm()))
-            wq = align_frame_prior(f, self.frames[far], self.poses[k], self.poses[far])
+            wq = align_to_widest_partner(f, self.frames, self.poses)
             f.depth_scale_shift = wq if wq is not None else f.depth_scale_shift
 
     def _store(self, mf: MapFrame) -> None:
