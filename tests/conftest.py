@@ -73,3 +73,9 @@ def tiny_config(tmp_path: Path) -> Path:
     path = tmp_path / "tiny.toml"
     path.write_text(TINY_TOML)
     return path
+
+
+@pytest.fixture(scope="session")
+def tiny_toml() -> str:
+    """The text of the tiny configuration (for fixtures wider than one test)."""
+    return TINY_TOML

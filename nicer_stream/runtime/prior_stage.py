@@ -2,7 +2,8 @@
 
 This is the one place besides evaluation and sinks that holds frames with ground
 truth: the `oracle` provider needs it. Flows are computed between the new frame
-and the latest keyframes, in both directions (the mapper's warping partners).
+and the latest keyframes, in both directions (the mapper's warping partners), and from
+the previous frame to the new one (the tracker's flow initialisation).
 """
 from __future__ import annotations
 
@@ -15,13 +16,18 @@ class PriorStage:
         self.engine = engine
         self.keep = keyframes_kept
         self.keyframes: list[Frame] = []
+        self.previous: Frame | None = None
 
     def __call__(self, frame: Frame) -> Priors:
         pri = self.engine.priors(frame, self.keyframes)
-        for kf in self.keyframes:
-            back = self.engine.flow(kf, frame)
+        sources = list(self.keyframes)
+        if self.previous is not None and all(kf.index != self.previous.index for kf in sources):
+            sources.append(self.previous)
+        for src in sources:
+            back = self.engine.flow(src, frame)
             if back is not None:
                 pri.flows.append(back)
+        self.previous = frame
         return pri
 
     def add_keyframe(self, frame: Frame) -> None:

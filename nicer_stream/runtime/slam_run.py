@@ -59,8 +59,28 @@ def run_slam(req: RunRequest) -> Path:
 
     sink = make_sink(list(req.sinks)) if req.sinks else None
     pacer = Pacer(req.realtime)
-    interrupted, n, intr, kept, last = False, 0, None, {}, None
+    interrupted, n, intr, kept, last, waiting = False, 0, None, {}, None, {}
     track_s = map_s = 0.0
+
+    def handle(events, step_s: float, frame) -> None:
+        """Progress line, kept renders and sink logging for each event."""
+        nonlocal last
+        for e in events:
+            if isinstance(e, KeyframeAdded):
+                stage.add_keyframe(waiting.get(e.index, frame))
+            if isinstance(e, FrameTracked):
+                f = waiting.pop(e.index, frame)
+                kept[e.index] = f.rgb if e.index % max(1, req.render_every) == 0 else None
+                last = (e.index, f.rgb)
+                lost = f" LOST ({e.lost})" if e.lost else ""
+                print(f"frame {e.index:5d}  track loss {e.loss:.4f}  {step_s:.1f} s{lost}", flush=True)
+                if sink is not None:
+                    with timer.stage("sinks"):
+                        sink.log_frame(e.index, e.timestamp, f.rgb, f.intrinsics, e.T_world_cam,
+                                       gt_T_world_cam=f.gt_pose, timestamp_ns=f.timestamp_ns)
+                        if math.isfinite(e.loss):
+                            sink.log_scalars(e.index, {"tracking_loss": e.loss, "seconds": step_s})
+
     try:
         for frame in source:
             if pacer.drop(frame.timestamp):
@@ -77,25 +97,17 @@ def run_slam(req: RunRequest) -> Path:
             timer.seconds.mapping += mapped
             timer.seconds.tracking += step_s - mapped
             n += 1
-            for e in events:
-                if isinstance(e, KeyframeAdded):
-                    stage.add_keyframe(frame)
-                if isinstance(e, FrameTracked):
-                    kept[e.index] = frame.rgb if e.index % max(1, req.render_every) == 0 else None
-                    last = (e.index, frame.rgb)
-                    lost = f" LOST ({e.lost})" if e.lost else ""
-                    print(f"frame {e.index:5d}  track loss {e.loss:.4f}  {step_s:.1f} s{lost}", flush=True)
-                    if sink is not None:
-                        with timer.stage("sinks"):
-                            sink.log_frame(e.index, e.timestamp, frame.rgb, frame.intrinsics, e.T_world_cam,
-                                           gt_T_world_cam=frame.gt_pose, timestamp_ns=frame.timestamp_ns)
-                            if math.isfinite(e.loss):
-                                sink.log_scalars(e.index, {"tracking_loss": e.loss, "seconds": step_s})
+            waiting[frame.index] = frame  # until its pose event (the two-view start holds frames)
+            if not any(isinstance(e, FrameTracked) and e.index == frame.index for e in events):
+                print(f"frame {frame.index:5d}  held for the two-view start", flush=True)
+            handle(events, step_s, frame)
         with timer.stage("mapping"):
-            slam.finish()
+            handle(slam.finish(), 0.0, None)
     except KeyboardInterrupt:
         interrupted = True
         print("interrupted: writing what was computed so far", flush=True)
+        if slam.model is None and slam.pending:  # held for the two-view start: start from them
+            handle(slam.finish(), 0.0, None)
     if slam.model is None:
         if sink is not None:
             sink.close()
@@ -123,8 +135,9 @@ def run_slam(req: RunRequest) -> Path:
             sink.close()
     notes = [f"scene bound from {slam.bound.source}"]
     if slam.scale_rule:
-        notes.append(f"metric scale: first frame's depth-prior median taken as {cfg.loss.first_depth_median_m} m, "
-                     f"its shift {slam.scale_rule[1]:.4g} from the normal prior")
+        how = slam.init_note or "its shift from the normal prior"
+        notes.append(f"metric scale: first frame's depth-prior median taken as {cfg.loss.first_depth_median_m} m; "
+                     f"shift {slam.scale_rule[1]:.4g}: {how}")
     if pacer.dropped:
         notes.append(f"--realtime dropped {pacer.dropped} frames (not in trajectory.tum)")
     s = write_summary(

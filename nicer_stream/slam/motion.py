@@ -11,10 +11,11 @@ from nicer_stream.geometry.se3 import invert, rotation_angle
 
 def predict_pose(history: list[torch.Tensor], mode: str) -> torch.Tensor:
     """Initial guess for the next T_world_cam from past poses: 'previous' or
-    'constant_velocity' (T_prev @ T_prevprev^-1 @ T_prev, in the camera frame)."""
-    if mode not in ("previous", "constant_velocity"):
-        raise ValueError(f"tracking init must be 'previous' or 'constant_velocity', got {mode!r}")
-    if mode == "previous" or len(history) < 2:
+    'constant_velocity' (T_prev @ T_prevprev^-1 @ T_prev, in the camera frame); 'flow'
+    (whose PnP needs the map, see tracking.flow_init) falls back to the previous pose."""
+    if mode not in ("previous", "constant_velocity", "flow"):
+        raise ValueError(f"tracking init must be 'previous', 'constant_velocity' or 'flow', got {mode!r}")
+    if mode in ("previous", "flow") or len(history) < 2:
         return history[-1].clone()
     prev, prevprev = history[-1], history[-2]
     return prev @ (invert(prevprev) @ prev)

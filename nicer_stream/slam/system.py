@@ -23,7 +23,9 @@ from nicer_stream.render.beta import BetaField
 from nicer_stream.runtime.bound_estimate import bound_from_config, bound_from_depth
 from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpdated
 from nicer_stream.slam.motion import predict_pose, tracking_failure
+from nicer_stream.slam.two_view import TwoView, two_view_init
 from nicer_stream.slam.window import ba_frames, select_window
+from nicer_stream.tracking.flow_init import pose_from_flows
 from nicer_stream.tracking.tracker import Tracker
 from nicer_stream.errors import UserError
 from nicer_stream.types import Frame, Priors
@@ -47,6 +49,10 @@ class SlamSystem:
     def __init__(self, cfg: SlamConfig, device: str = "cpu") -> None:
         if cfg.loss.slam_prior_alignment not in ("lstsq", "map", "flow"):
             raise UserError(f"loss.slam_prior_alignment must be lstsq, map or flow, got {cfg.loss.slam_prior_alignment!r}")
+        if cfg.tracking.init not in ("previous", "constant_velocity", "flow"):
+            raise UserError(f"tracking.init must be previous, constant_velocity or flow, got {cfg.tracking.init!r}")
+        if cfg.mapping.init not in ("first_frame", "two_view"):
+            raise UserError(f"mapping.init must be first_frame or two_view, got {cfg.mapping.init!r}")
         self.cfg, self.device = cfg, torch.device(device)
         self.rng = random.Random(cfg.seed)
         self.model: SceneModel | None = None
@@ -62,21 +68,46 @@ class SlamSystem:
         self.lost_frames: list[int] = []
         self.recent_losses: list[float] = []
         self.scale_rule: tuple[float, float] | None = None
+        self.pending: list[MapFrame | None] = []  # held for the two-view start (None: corrupt)
+        self.pending_raw: list[Frame] = []
+        self.init_note = ""
 
     # -- per frame -------------------------------------------------------------------
     def step(self, frame: Frame, priors: Priors | None = None) -> list[Event]:
-        """Track `frame` (GT-free), add it as a keyframe / map when the schedule says so."""
+        """Track `frame` (GT-free), add it as a keyframe / map when the schedule says so.
+        With `mapping.init = 'two_view'` the first frames are held until the second view
+        arrives; their events come then."""
         if frame.gt_pose is not None or frame.gt_depth is not None:
             raise UserError("SlamSystem.step got a frame with ground truth: pass frame.without_ground_truth()")
-        events: list[Event] = []
-        if not np.isfinite(frame.rgb).all():
-            return [self._skip_corrupt(frame)]
-        mf = MapFrame.from_frame(frame, priors, self.device)
-        if priors is not None:  # flows from stored frames to this one
-            for kf in self.frames.values():
+        mf = MapFrame.from_frame(frame, priors, self.device) if np.isfinite(frame.rgb).all() else None
+        if priors is not None and mf is not None:  # flows from stored (and held) frames to this one
+            for kf in list(self.frames.values()) + [p for p in self.pending if p is not None]:
                 kf.add_flows(priors)
+        if self.model is None and self._waits(mf):
+            self.pending.append(mf)
+            self.pending_raw.append(frame)
+            # The first frame is a keyframe from the start: priors flow from it to the next ones.
+            return [KeyframeAdded(frame.index)] if len(self.pending) == 1 else []
+        if self.pending:
+            return self._start_two_view(mf, frame)
+        return self._advance(mf, frame)
+
+    def _waits(self, mf: MapFrame | None) -> bool:
+        """Hold frames for the two-view start: until `init_frames` frames follow the first."""
+        if self.cfg.mapping.init != "two_view" or not self.pending and (mf is None or mf.depth_prior is None):
+            return False
+        return len(self.pending) < self.cfg.mapping.init_frames
+
+    def _advance(self, mf: MapFrame | None, frame: Frame, T_known: torch.Tensor | None = None) -> list[Event]:
+        """One frame through the normal schedule: track (or take `T_known`), store, keyframe, map."""
+        if mf is None:
+            return [self._skip_corrupt(frame)]
+        events: list[Event] = []
         if self.model is None:
             events += self._initialise(mf)
+        elif T_known is not None:
+            self.poses[mf.index] = T_known
+            events.append(FrameTracked(mf.index, mf.timestamp, T_known.double().cpu().numpy(), 0.0, 0.0))
         else:
             events.append(self._track(mf))
         i = frame.index
@@ -92,18 +123,30 @@ class SlamSystem:
         return events
 
     def finish(self) -> list[Event]:
-        """Final mapping over the latest frame if it was not just mapped."""
+        """Start from what is held if the sequence ended first; final mapping over the
+        latest frame if it was not just mapped."""
+        if self.pending:
+            events = self._start_two_view(None, None)
+            return events + self.finish()
         if self.model is None or (len(self.order) - 1) % self.cfg.mapping.every == 0:
             return []
         return [self._map(self.order[-1], self.cfg.mapping.iters)]
 
     # -- stages ----------------------------------------------------------------------
-    def _initialise(self, mf: MapFrame) -> list[Event]:
+    def _initialise(self, mf: MapFrame, second: MapFrame | None = None, view: TwoView | None = None) -> list[Event]:
+        """Bound, scene and the first mapping from `mf` at the identity (and `second` at
+        the two-view pose, both priors' (w, q) fixed from then on)."""
         T0 = torch.eye(4, device=self.device)
         self.poses[mf.index] = T0
         cfg = self.cfg
-        if mf.depth_prior is not None and cfg.bound.mode == "auto":
+        if view is not None:
+            self.scale_rule = view.first_scale_shift
+            mf.depth_scale_shift = view.first_scale_shift
+            second.depth_scale_shift = view.second_scale_shift
+            self.poses[second.index] = torch.as_tensor(view.T_world_second, dtype=torch.float32, device=self.device)
+        elif mf.depth_prior is not None and cfg.bound.mode == "auto":
             self.scale_rule = first_scale_shift(mf, cfg.loss.first_depth_median_m)
+        if self.scale_rule is not None and cfg.bound.mode == "auto":
             w, q = self.scale_rule
             depth_m = ((mf.depth_prior - q) / w).clamp_min(0).cpu().numpy()
             self.bound = bound_from_depth(depth_m, mf.intr, T0.cpu().numpy().astype(np.float64), cfg.bound)
@@ -114,19 +157,49 @@ class SlamSystem:
         self.mapper = Mapper(self.model, self.beta, cfg, cfg.seed)
         self.tracker = Tracker(self.model, self.beta, cfg.tracking, cfg.render, cfg.seed)
         self.frames[mf.index] = mf
+        window = [mf] if second is None else [mf, second]
         # One long call from the sphere, like `map`: the colour grids join early.
-        stats = self.mapper.optimise([mf], self.poses, cfg.mapping.first_iters, fixed_scale_shift=self.scale_rule,
+        stats = self.mapper.optimise(window, self.poses, cfg.mapping.first_iters,
+                                     fixed_scale_shift=None if view is not None else self.scale_rule,
                                      color_start=cfg.mapping.batch_color_start)
-        if cfg.loss.slam_prior_alignment == "map":
+        if cfg.loss.slam_prior_alignment == "map" and view is None:
             mf.depth_scale_shift = self.scale_rule
         return [
             FrameTracked(mf.index, mf.timestamp, T0.double().cpu().numpy(), 0.0, 0.0),
-            MapUpdated(mf.index, (mf.index,), stats.loss, stats.iters, stats.seconds),
+            MapUpdated(mf.index, tuple(f.index for f in window), stats.loss, stats.iters, stats.seconds),
         ]
+
+    def _start_two_view(self, mf: MapFrame | None, frame: Frame | None) -> list[Event]:
+        """Initialise from the held frames (+ `mf`, the second view, when given), then run the
+        held frames through tracking and the schedule in input order."""
+        held = list(zip(self.pending, self.pending_raw)) + ([(mf, frame)] if frame is not None else [])
+        self.pending, self.pending_raw = [], []
+        first = held[0][0]
+        last = next((m for m, _ in reversed(held[1:]) if m is not None), None)
+        view = two_view_init(first, last, self.cfg.loss.first_depth_median_m) if last is not None else None
+        if view is None:
+            log.warning("two-view start failed (too little parallax or flow): scale and shift from frame %d alone",
+                        first.index)
+            self.init_note = "two-view start failed: first frame's shift from the normal prior"
+        else:
+            self.init_note = (f"two-view start with frame {last.index} ({view.inliers} essential-matrix inliers): "
+                              f"first prior's shift {view.first_scale_shift[1]:.3f} from flow triangulation")
+        events = self._initialise(first, last if view is not None else None, view)
+        self.order.append(first.index)
+        self.timestamps[first.index] = held[0][1].timestamp
+        self.keyframes.append(first.index)  # announced when it was held
+        self._store(first)
+        for m, f in held[1:]:
+            known = self.poses[m.index] if (view is not None and m is last) else None
+            events += self._advance(m, f, known)
+        return events
 
     def _track(self, mf: MapFrame) -> FrameTracked:
         history = [self.poses[i] for i in self.order[-2:]]
-        T_pred = predict_pose(history, self.cfg.tracking.init)
+        init = self.cfg.tracking.init
+        T_pred = predict_pose(history, init)
+        if init == "flow":
+            T_pred = self._flow_init(mf, T_pred)
         res = self.tracker.track(mf, T_pred)
         reason = tracking_failure(res.T_world_cam, T_pred, res.loss, self.recent_losses, self.cfg.tracking)
         T = T_pred if reason else res.T_world_cam
@@ -137,6 +210,16 @@ class SlamSystem:
             self.recent_losses = (self.recent_losses + [res.loss])[-10:]
         self.poses[mf.index] = T.detach()
         return FrameTracked(mf.index, mf.timestamp, T.detach().double().cpu().numpy(), res.loss, res.seconds, reason)
+
+    def _flow_init(self, mf: MapFrame, T_prev: torch.Tensor) -> torch.Tensor:
+        """PnP pose from the stored frames' flows to `mf` (else `T_prev`)."""
+        sources = [(f, self.poses[k]) for k, f in self.frames.items() if mf.index in f.flows]
+        T = pose_from_flows(sources, mf, T_prev, self.model, self.beta, self.tracker.render,
+                            self.cfg.tracking.flow_points, self.tracker.gen)
+        if T is None:
+            log.info("frame %d: no flow PnP solution: tracking from the previous pose", mf.index)
+            return T_prev
+        return T
 
     def _skip_corrupt(self, frame: Frame) -> FrameTracked:
         """A frame with non-finite pixels: pose from the motion model, never mapped."""

@@ -58,17 +58,20 @@ class Tracker:
         xi = torch.zeros(6, device=T_init.device, requires_grad=True)
         opt = torch.optim.Adam([xi], lr=self.cfg.lr)
         best_loss, best_xi, first = math.inf, torch.zeros(6, device=T_init.device), None
-        for it in range(self.cfg.iters):
+        # iters steps, each loss measured before its step, plus the loss of the final iterate.
+        for it in range(self.cfg.iters + 1):
             T = T_init @ se3_exp(xi)
             uv, pix = sample_pixels(frame, self.cfg.rays, self.gen)
             rays = rays_for_pixels(uv, frame.intr, T)
             out = render_rays(self.model, self.beta, rays, self.render)
             loss = rgb_l1(out.rgb, frame.rgb.reshape(-1, 3)[pix], self._observed(rays, out))
-            (grad,) = torch.autograd.grad(loss, [xi])
             val = float(loss.detach())
             first = val if first is None else first
             if val < best_loss and math.isfinite(val):
                 best_loss, best_xi = val, xi.detach().clone()
+            if it == self.cfg.iters:
+                break
+            (grad,) = torch.autograd.grad(loss, [xi])
             if not torch.isfinite(grad).all():
                 break
             xi.grad = grad

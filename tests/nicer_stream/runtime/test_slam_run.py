@@ -17,7 +17,7 @@ def test_run_writes_the_output_contract(tmp_path, tiny_config):
     out = run_slam(RunRequest(source="synthetic:room?frames=6", out_dir=tmp_path / "out", priors="oracle",
                               preset="fast", config_file=str(cfg), sinks=(f"rerun:{tmp_path / 'rec.rrd'}",)))
     t, poses = read_tum(out / od.TRAJECTORY_FILE)
-    assert len(t) == 6
+    assert len(t) == 6 and np.all(np.diff(t) > 0)  # input order, though the two-view start holds frames
     assert np.allclose(poses[0], np.eye(4), atol=1e-6)  # the first pose is the identity
     assert np.isfinite(poses).all()
     summary = json.loads((out / od.SUMMARY_FILE).read_text())
@@ -28,11 +28,13 @@ def test_run_writes_the_output_contract(tmp_path, tiny_config):
     assert "oracle" in summary["priors"]
     assert set(summary["stages_s"]) == {"tracking", "mapping", "priors", "sinks"}
     assert summary["bound"]["source"] == "depth_prior"
+    assert any("two-view" in n for n in summary["notes"])
     assert (tmp_path / "rec.rrd").stat().st_size > 0
     assert any((out / od.RENDERS_DIR).glob("*.npz"))
 
 
-def test_nan_frame_does_not_reach_outputs(tmp_path, monkeypatch, tiny_config):
+@pytest.mark.parametrize("priors", ["none", "oracle"])  # oracle: the NaN frame is among those held
+def test_nan_frame_does_not_reach_outputs(tmp_path, monkeypatch, tiny_config, priors):
     import sources.synthetic as synth
 
     real_open = synth.open
@@ -53,10 +55,10 @@ def test_nan_frame_does_not_reach_outputs(tmp_path, monkeypatch, tiny_config):
 
     monkeypatch.setattr(synth, "open", open_with_nan)
     cfg = tiny_config
-    out = run_slam(RunRequest(source="synthetic:room?frames=5", out_dir=tmp_path / "out", priors="none", flow="none",
-                              config_file=str(cfg)))
+    out = run_slam(RunRequest(source="synthetic:room?frames=5", out_dir=tmp_path / "out", priors=priors,
+                              flow="none" if priors == "none" else "oracle", config_file=str(cfg)))
     t, poses = read_tum(out / od.TRAJECTORY_FILE)
-    assert len(t) == 5 and np.isfinite(poses).all()
+    assert len(t) == 5 and np.isfinite(poses).all() and np.all(np.diff(t) > 0)
     summary = json.loads((out / od.SUMMARY_FILE).read_text())
     assert 3 in summary["stats"]["lost_frames"]
     for f in (out / od.RENDERS_DIR).glob("*.npz"):

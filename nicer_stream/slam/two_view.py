@@ -1,0 +1,91 @@
+"""Two-view initialisation: the second camera and both depth priors' scale and shift.
+
+A relative depth prior is `w * depth + q`. From the first frame alone the shift q can
+only be guessed (the paper takes 0; `depth_shift` reads it off the normal prior, to
+~2% of the median depth), and a wrong q bends the whole map: depth becomes
+`a * true + b` (Replica clip: b ~ 13 cm), which no similarity alignment removes.
+With a second frame far enough away, the flow between the two gives the relative pose
+(essential matrix, up to scale) and a triangulated depth for every flow pixel; a robust
+affine fit of each prior to it gives (w, q) from geometry. The metric scale stays a
+convention: the first frame's median depth is `median_m` metres.
+
+Measured on Replica frames 0/10 (10 cm baseline, 320 px), shift error relative to the
+prior's median: oracle flow 0.08%, DIS flow 8.6% (worse than the normal prior's 2.2%: so
+little parallax needs accurate flow); synthetic room frames 0/10 (25 cm): oracle 0.7%, DIS 1.6%
+of the true shift.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import torch
+
+from nicer_stream.geometry.camera import pixel_grid
+from nicer_stream.mapping.map_frame import MapFrame
+from nicer_stream.mapping.prior_alignment import align_frame_prior
+
+
+@dataclass(frozen=True)
+class TwoView:
+    """T_world_cam (4, 4) float64 of the second frame (world = first camera), and each
+    frame's prior (w, q) with prior = w * z_metres + q; inliers of the essential matrix."""
+
+    T_world_second: np.ndarray
+    first_scale_shift: tuple[float, float]
+    second_scale_shift: tuple[float, float] | None
+    inliers: int
+
+
+def _normalised(uv: np.ndarray, intr) -> np.ndarray:
+    return np.stack([(uv[:, 0] - intr.cx) / intr.fx, (uv[:, 1] - intr.cy) / intr.fy], -1)
+
+
+def relative_pose(first: MapFrame, second: MapFrame, max_points: int = 5000, thresh_px: float = 1.0,
+                  seed: int = 0) -> tuple[np.ndarray, int] | None:
+    """T_world_cam (4, 4) float64 of `second` with `first` at the identity and a unit
+    baseline, from `first`'s flow to it by the essential matrix; with the inlier count.
+    None without a flow or with fewer than 100 inliers."""
+    if second.index not in first.flows:
+        return None
+    flow, valid = first.flows[second.index]
+    ids = valid.reshape(-1).nonzero()[:, 0].cpu().numpy()
+    if len(ids) < 100:
+        return None
+    ids = np.random.default_rng(seed).permutation(ids)[:max_points]
+    uv0 = pixel_grid(first.intr).reshape(-1, 2).cpu().numpy()[ids].astype(np.float64)
+    uv1 = uv0 + flow.reshape(-1, 2).cpu().numpy()[ids].astype(np.float64)
+    n0, n1 = _normalised(uv0, first.intr), _normalised(uv1, second.intr)
+    E, mask = cv2.findEssentialMat(n0, n1, np.eye(3), cv2.RANSAC, 0.999, thresh_px / first.intr.fx)
+    if E is None or E.shape != (3, 3):
+        return None
+    n_in, R, t, mask = cv2.recoverPose(E, n0, n1, np.eye(3), mask=mask)
+    if n_in < 100:
+        return None
+    T_second_first = np.eye(4)
+    T_second_first[:3, :3], T_second_first[:3, 3] = R, t[:, 0]
+    return np.linalg.inv(T_second_first), int(n_in)
+
+
+def two_view_init(first: MapFrame, second: MapFrame, median_m: float) -> TwoView | None:
+    """The second pose and both priors' (w, q), at the scale where `first`'s median aligned
+    depth is `median_m`; None when the geometry is too weak (no flow, < 100 essential-matrix
+    inliers, a failed or non-positive fit)."""
+    rel = relative_pose(first, second)
+    if rel is None or first.depth_prior is None:
+        return None
+    T1 = torch.as_tensor(rel[0])
+    wq = align_frame_prior(first, second, torch.eye(4, dtype=torch.float64), T1)
+    if wq is None or wq[0] <= 0:
+        return None
+    w, q = wq
+    prior = first.depth_prior[first.depth_prior > q].double()
+    if prior.numel() < 100:
+        return None
+    s = median_m / float(((prior - q) / w).median())  # unit-baseline depth -> metres
+    T1 = T1.numpy().copy()
+    T1[:3, 3] *= s
+    second_wq = align_frame_prior(second, first, torch.as_tensor(T1), torch.eye(4, dtype=torch.float64))
+    second_wq = second_wq if second_wq is not None and second_wq[0] > 0 else None
+    return TwoView(T1, (w / s, q), second_wq, rel[1])

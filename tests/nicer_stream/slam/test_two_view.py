@@ -1,0 +1,52 @@
+"""Two-view start: relative pose and the priors' (w, q) from the flow between two frames."""
+import numpy as np
+import torch
+
+from nicer_stream.mapping.map_frame import MapFrame
+from nicer_stream.priors import PriorEngine
+from nicer_stream.priors.oracle import OracleDepthNormal, OracleFlow
+from nicer_stream.slam.two_view import relative_pose, two_view_init
+from sources import open_source
+from sources.base import SourceOptions
+
+
+def _pair(k=10, side=160):
+    frames = list(open_source("synthetic:room?frames=12", SourceOptions(max_side=side)))
+    eng = PriorEngine(OracleDepthNormal(), OracleFlow())
+    f0, fk = frames[0], frames[k]
+    m0 = MapFrame.from_frame(f0.without_ground_truth(), eng.priors(f0, [fk]), torch.device("cpu"))
+    mk = MapFrame.from_frame(fk.without_ground_truth(), eng.priors(fk, [f0]), torch.device("cpu"))
+    return f0, fk, m0, mk
+
+
+def _true_affine(frame, prior):
+    m = frame.gt_depth > 0
+    A = np.stack([frame.gt_depth[m], np.ones(m.sum())], -1)
+    return np.linalg.lstsq(A, prior[m], rcond=None)[0]
+
+
+def test_two_view_recovers_pose_and_shift_up_to_the_scale_convention():
+    f0, fk, m0, mk = _pair()
+    view = two_view_init(m0, mk, median_m=2.0)
+    assert view is not None and view.inliers > 1000
+    rel = np.linalg.inv(f0.gt_pose) @ fk.gt_pose
+    k = float(np.median(f0.gt_depth[f0.gt_depth > 0])) / 2.0  # metres per map unit
+    w_true, q_true = _true_affine(f0, m0.depth_prior.numpy())
+    w, q = view.first_scale_shift
+    med = float(np.median(m0.depth_prior.numpy()))
+    assert abs(q - q_true) < 0.01 * med, (q, q_true)
+    assert abs(w / k - w_true) < 0.02 * w_true, (w / k, w_true)
+    assert np.abs(view.T_world_second[:3, 3] * k - rel[:3, 3]).max() < 0.01 * np.linalg.norm(rel[:3, 3]) + 1e-3
+    R_err = view.T_world_second[:3, :3].T @ rel[:3, :3]
+    assert np.degrees(np.arccos(np.clip((np.trace(R_err) - 1) / 2, -1, 1))) < 0.2
+    # The second prior's (w, q), carried over from the first: same metric scale.
+    w2_true, q2_true = _true_affine(fk, mk.depth_prior.numpy())
+    w2, q2 = view.second_scale_shift
+    assert abs(w2 / k - w2_true) < 0.03 * w2_true and abs(q2 - q2_true) < 0.02 * float(np.median(mk.depth_prior.numpy()))
+
+
+def test_no_flow_no_start():
+    f0, fk, m0, mk = _pair(k=3, side=64)
+    m0.flows.clear()
+    assert relative_pose(m0, mk) is None
+    assert two_view_init(m0, mk, 2.0) is None
