@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The measurements named in the issues (long: run one at a time on a 2-core CPU).
-# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-none|run-synth|run10|flow] [OUTROOT]
+# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-none|run-synth|run10|run10-paper|flow] [OUTROOT]
+# run10-paper needs hours here: Ctrl-C writes what was computed (trajectory so far, mesh, eval).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 NS=.venv/bin/nicer-stream
@@ -16,6 +17,7 @@ case "${1:-all}" in
   run)       t $NS run --source $REPLICA --priors oracle --preset fast --out $OUT/run_oracle ;;
   run-none)  t $NS run --source $REPLICA --priors none --preset fast --out $OUT/run_none ;;
   run10)     t $NS run --source $REPLICA --priors oracle --preset fast --max-frames 10 --out $OUT/run10_fast ;;
+  run10-paper) t $NS run --source $REPLICA --priors oracle --preset paper --max-frames 10 --max-side 320 --render-every 100 --out $OUT/run10_paper ;;
   run-synth) t $NS run --source "synthetic:room?frames=100" --priors oracle --preset fast --out $OUT/run_synth ;;
-  *) echo "usage: $0 map|map-none|map-paper|map-synth|run|run-none|run10|run-synth|flow [OUTROOT]"; exit 2 ;;
+  *) echo "usage: $0 map|map-none|map-paper|map-synth|run|run-none|run10|run10-paper|run-synth|flow [OUTROOT]"; exit 2 ;;
 esac
