@@ -86,8 +86,11 @@ class SlamSystem:
         if self.model is None and self._waits(mf):
             self.pending.append(mf)
             self.pending_raw.append(frame)
+            if len(self.pending) > 1:
+                return []
             # The first frame is a keyframe from the start: priors flow from it to the next ones.
-            return [KeyframeAdded(frame.index)] if len(self.pending) == 1 else []
+            self.keyframes.append(frame.index)
+            return [KeyframeAdded(frame.index)]
         if self.pending:
             return self._start_two_view(mf, frame)
         return self._advance(mf, frame)
@@ -110,6 +113,11 @@ class SlamSystem:
             events.append(FrameTracked(mf.index, mf.timestamp, T_known.double().cpu().numpy(), 0.0, 0.0))
         else:
             events.append(self._track(mf))
+        return events + self._record(mf, frame)
+
+    def _record(self, mf: MapFrame, frame: Frame) -> list[Event]:
+        """Book a frame whose pose is set: order, storage, keyframe and mapping schedule."""
+        events: list[Event] = []
         i = frame.index
         self.order.append(i)
         self.timestamps[i] = frame.timestamp
@@ -185,10 +193,7 @@ class SlamSystem:
             self.init_note = (f"two-view start with frame {last.index} ({view.inliers} essential-matrix inliers): "
                               f"first prior's shift {view.first_scale_shift[1]:.3f} from flow triangulation")
         events = self._initialise(first, last if view is not None else None, view)
-        self.order.append(first.index)
-        self.timestamps[first.index] = held[0][1].timestamp
-        self.keyframes.append(first.index)  # announced when it was held
-        self._store(first)
+        events += self._record(first, held[0][1])  # a keyframe since it was held
         for m, f in held[1:]:
             known = self.poses[m.index] if (view is not None and m is last) else None
             events += self._advance(m, f, known)

@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 import torch
 
-from nicer_stream.geometry.camera import pixel_grid
+from nicer_stream.geometry.camera import camera_dirs, pixel_grid
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.prior_alignment import align_frame_prior
 
@@ -36,10 +36,6 @@ class TwoView:
     first_scale_shift: tuple[float, float]
     second_scale_shift: tuple[float, float] | None
     inliers: int
-
-
-def _normalised(uv: np.ndarray, intr) -> np.ndarray:
-    return np.stack([(uv[:, 0] - intr.cx) / intr.fx, (uv[:, 1] - intr.cy) / intr.fy], -1)
 
 
 def relative_pose(first: MapFrame, second: MapFrame, max_points: int = 5000, thresh_px: float = 1.0,
@@ -56,7 +52,8 @@ def relative_pose(first: MapFrame, second: MapFrame, max_points: int = 5000, thr
     ids = np.random.default_rng(seed).permutation(ids)[:max_points]
     uv0 = pixel_grid(first.intr).reshape(-1, 2).cpu().numpy()[ids].astype(np.float64)
     uv1 = uv0 + flow.reshape(-1, 2).cpu().numpy()[ids].astype(np.float64)
-    n0, n1 = _normalised(uv0, first.intr), _normalised(uv1, second.intr)
+    n0 = camera_dirs(torch.from_numpy(uv0), first.intr)[:, :2].numpy()  # normalised image coordinates
+    n1 = camera_dirs(torch.from_numpy(uv1), second.intr)[:, :2].numpy()
     E, mask = cv2.findEssentialMat(n0, n1, np.eye(3), cv2.RANSAC, 0.999, thresh_px / first.intr.fx)
     if E is None or E.shape != (3, 3):
         return None

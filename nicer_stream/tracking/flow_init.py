@@ -26,7 +26,7 @@ def pnp_pose(points_world: np.ndarray, uv: np.ndarray, intr: Intrinsics, T_guess
     count. None with fewer than `min_inliers` inliers."""
     if len(points_world) < min_inliers:
         return None
-    K = np.array([[intr.fx, 0, intr.cx], [0, intr.fy, intr.cy], [0, 0, 1]], dtype=np.float64)
+    K = intr.matrix()
     T_cw = np.linalg.inv(T_guess)
     rvec, _ = cv2.Rodrigues(T_cw[:3, :3])
     tvec = T_cw[:3, 3].copy()
