@@ -93,19 +93,21 @@ class DenseGrids(nn.Module):
         return out, jac
 
     def _volumes(self, with_diffs: bool):
-        """Per level: (1, C, R, R, R) copy of the table and, if asked, its forward differences
-        along each axis; cached until the table changes (once per optimiser step)."""
+        """Per level: (1, C, R, R, R) channels-last view of the table (no copy: one corner's C
+        features are adjacent in memory, ~1.5x faster sampling than a channels-first copy)
+        and, if asked, its forward differences along each axis, cached until the table
+        changes (once per optimiser step)."""
         # fused Adam updates in place without bumping `_version`: owners of an optimiser
         # must call `invalidate()` after each step (SceneModel.parameters_changed).
         key = (self.table._version, self.table.data_ptr(), self._generation)
         if getattr(self, "_vol_key", None) != key:
             vols, off = [], 0
             for r in self.resolutions:
-                vols.append(self.table.detach()[off:off + r**3].reshape(r, r, r, self.dim).permute(3, 0, 1, 2).contiguous()[None])
+                vols.append(self.table.detach()[off:off + r**3].reshape(r, r, r, self.dim).permute(3, 0, 1, 2)[None])
                 off += r**3
             self._vols, self._diffs, self._vol_key = vols, None, key
         if with_diffs and self._diffs is None:
-            self._diffs = [[v.narrow(2 + a, 1, r - 1) - v.narrow(2 + a, 0, r - 1) for a in range(3)]
+            self._diffs = [[_channels_last(v.narrow(2 + a, 1, r - 1) - v.narrow(2 + a, 0, r - 1)) for a in range(3)]
                            for r, v in zip(self.resolutions, self._vols)]
         return self._vols, self._diffs
 
@@ -117,21 +119,37 @@ class DenseGrids(nn.Module):
         vols, diffs = self._volumes(with_tangent)
         for level, (r, v) in enumerate(zip(self.resolutions, vols)):
             u = (x.clamp(-1, 1) + 1) * ((r - 1) / 2)  # (N, 3) vertex units
-            grid = (u / (r - 1) * 2 - 1)[:, [2, 1, 0]].reshape(1, n, 1, 1, 3)  # grid_sample wants (z, y, x)
-            outs.append(F.grid_sample(v, grid, mode="bilinear", align_corners=True).reshape(self.dim, n).t())
+            outs.append(_sample(v, u / (r - 1) * 2 - 1))
             if with_tangent:
                 # d/dx_a of trilinear interpolation = bilinear interpolation (other axes) of the
                 # forward difference along a, in the cell containing x.
                 i0 = u.floor().clamp(0, r - 2)
                 per_axis = []
                 for a in range(3):
-                    diff = diffs[level][a]
                     ua = u.clone()
                     ua[:, a] = i0[:, a]
                     sizes = torch.tensor([r - 1.0] * 3, dtype=x.dtype, device=x.device)
                     sizes[a] = r - 2.0
-                    g = (ua / sizes * 2 - 1)[:, [2, 1, 0]].reshape(1, n, 1, 1, 3)
-                    per_axis.append(F.grid_sample(diff, g, mode="bilinear", align_corners=True).reshape(self.dim, n).t())
+                    per_axis.append(_sample(diffs[level][a], ua / sizes * 2 - 1))
                 jacs.append(torch.stack(per_axis, 1) * ((r - 1) / 2))
         out = torch.cat(outs, -1)
         return out, (torch.cat(jacs, -1) if with_tangent else None)
+
+
+def _channels_last(v: torch.Tensor) -> torch.Tensor:
+    """(1, C, D, H, W) -> the same values with C innermost in memory."""
+    return v.permute(0, 2, 3, 4, 1).contiguous().permute(0, 4, 1, 2, 3)
+
+
+def _sample(v: torch.Tensor, g: torch.Tensor) -> torch.Tensor:
+    """Trilinear sample of v (1, C, D, H, W) at g (N, 3) in [-1, 1] (x, y, z order = D, H, W)
+    -> (N, C). The points are split into one batch per thread: the CPU kernel of
+    grid_sample parallelises over the batch only (2 threads: ~2x faster)."""
+    n, c = g.shape[0], v.shape[1]
+    b = max(1, min(torch.get_num_threads(), n // 1024))
+    pad = (-n) % b
+    if pad:
+        g = torch.cat([g, g.new_zeros(pad, 3)])
+    grid = g[:, [2, 1, 0]].reshape(b, -1, 1, 1, 3)  # grid_sample wants (z, y, x)
+    out = F.grid_sample(v.expand(b, -1, -1, -1, -1), grid, mode="bilinear", align_corners=True)
+    return out.reshape(b, c, -1).permute(0, 2, 1).reshape(-1, c)[:n]
