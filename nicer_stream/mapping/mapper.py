@@ -43,6 +43,10 @@ class Mapper:
         self.group_names = list(groups)
         # fused Adam: one kernel over the ~20M grid parameters, ~5x faster than the default on CPU.
         self.opt = torch.optim.Adam(list(groups.values()), betas=(0.9, 0.99), eps=1e-15, fused=True)
+        # Persistent gradient buffers for the grid tables, zeroed in place each iteration:
+        # the row gathers add into them (model/gather.py) instead of allocating.
+        for t in model.grid_tables():
+            t.grad = torch.zeros_like(t)
         self.gen = torch.Generator().manual_seed(seed)
         self.rng = random.Random(seed)
 
@@ -53,6 +57,19 @@ class Mapper:
         if frac < color_start:
             frozen.add("color_grid")
         return frozen
+
+    def _step(self, frozen: set[str]) -> None:
+        """Adam step on the groups not in `frozen` (Adam skips parameters without a
+        gradient; the buffers are handed back afterwards)."""
+        kept = []
+        for name, group in zip(self.group_names, self.opt.param_groups):
+            if name in frozen:
+                for p in group["params"]:
+                    kept.append((p, p.grad))
+                    p.grad = None
+        self.opt.step()
+        for p, g in kept:
+            p.grad = g
 
     def _eikonal_points(self, n: int, use_fine: bool) -> torch.Tensor | None:
         if n <= 0:
@@ -93,16 +110,11 @@ class Mapper:
             extra = self._eikonal_points(m.eikonal_points, use_fine)
             terms = mapping_terms(out, layout, self.cfg.loss, fixed_scale_shift, extra, self.rng)
             loss = total_loss(terms, self.cfg.loss.weights)
-            self.opt.zero_grad(set_to_none=True)
+            self.opt.zero_grad(set_to_none=False)
             if pose_opt is not None:
                 pose_opt.zero_grad(set_to_none=True)
             loss.backward()
-            frozen = self._frozen(frac, color_start)
-            for name, group in zip(self.group_names, self.opt.param_groups):
-                if name in frozen:
-                    for p in group["params"]:
-                        p.grad = None
-            self.opt.step()
+            self._step(self._frozen(frac, color_start))
             self.model.parameters_changed()
             if ba:
                 pose_opt.step()

@@ -2,6 +2,14 @@
 
 Autograd's default backward for `table[idx]` goes through an accumulating
 `index_put_`, several times slower on CPU (docs/performance notes).
+
+When the table is a leaf that already has a `.grad` buffer, the backward adds
+into that buffer in place and hands autograd nothing: a fresh table-sized
+gradient per backward (~80 MB for the fine grids) is page-faulted memory on
+every iteration, and autograd would then add it to `.grad` (together ~40% of a
+mapping iteration on CPU). The owner keeps the buffer (Mapper zeroes it in
+place). This is `.backward()` semantics; `torch.autograd.grad` w.r.t. such a
+table is not supported.
 """
 from __future__ import annotations
 
@@ -12,14 +20,18 @@ class _GatherRows(torch.autograd.Function):
     @staticmethod
     def forward(ctx, table: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
         ctx.save_for_backward(idx)
-        ctx.n_rows = table.shape[0]
+        ctx.table = table
         return table[idx]
 
     @staticmethod
     def backward(ctx, grad_out: torch.Tensor):
         (idx,) = ctx.saved_tensors
         c = grad_out.shape[-1]
-        grad = torch.zeros(ctx.n_rows, c, dtype=grad_out.dtype, device=grad_out.device)
+        table = ctx.table
+        if table.is_leaf and table.grad is not None:
+            table.grad.index_add_(0, idx.reshape(-1), grad_out.reshape(-1, c))
+            return None, None
+        grad = torch.zeros(table.shape[0], c, dtype=grad_out.dtype, device=grad_out.device)
         grad.index_add_(0, idx.reshape(-1), grad_out.reshape(-1, c))
         return grad, None
 

@@ -32,6 +32,10 @@ class SceneModel(nn.Module):
             "color_mlp": {"params": list(self.color.mlp.parameters()), "lr": m.lr},
         }
 
+    def grid_tables(self) -> list[torch.Tensor]:
+        """The feature-grid tables (coarse, fine, colour): nearly all of the parameters."""
+        return [self.geometry.coarse_grid.table, self.geometry.fine_grid.table, self.color.grid.table]
+
     def parameters_changed(self) -> None:
         """Call after every optimiser step: drops caches derived from the parameters."""
         self.geometry.coarse_grid.invalidate()

@@ -40,3 +40,18 @@ def test_gradcheck():
     table, idx, _ = _case()
     t = table.clone().requires_grad_(True)
     assert torch.autograd.gradcheck(lambda x: gather_rows(x, idx), (t,))
+
+
+def test_preallocated_grad_accumulates_in_place_like_autograd():
+    """With a `.grad` buffer the backward adds into it (no new tensor): two gathers of
+    the same table and a prior content accumulate exactly as autograd's indexing does."""
+    table, idx, up = _case()
+    a = table.clone().requires_grad_(True)
+    prior = torch.randn(7, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(5))
+    a.grad = prior.clone()
+    buf = a.grad
+    ((gather_rows(a, idx) * up).sum() + gather_rows(a, idx[:1]).square().sum()).backward()
+    b = table.clone().requires_grad_(True)
+    ((b[idx] * up).sum() + b[idx[:1]].square().sum()).backward()
+    assert a.grad is buf
+    assert torch.allclose(a.grad, prior + b.grad, atol=1e-12)
