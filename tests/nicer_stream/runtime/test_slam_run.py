@@ -12,7 +12,7 @@ from nicer_stream.config import load
 from sources.base import SourceOptions
 
 
-def test_run_writes_the_output_contract(tmp_path, tiny_config):
+def test_run_writes_the_output_contract(tmp_path, tiny_config, capsys):
     cfg = tiny_config
     out = run_slam(RunRequest(source="synthetic:room?frames=6", out_dir=tmp_path / "out", priors="oracle",
                               preset="fast", config_file=str(cfg), sinks=(f"rerun:{tmp_path / 'rec.rrd'}",)))
@@ -27,10 +27,17 @@ def test_run_writes_the_output_contract(tmp_path, tiny_config):
     assert summary["frames"] == 6 and summary["interrupted"] is False
     assert "oracle" in summary["priors"]
     assert set(summary["stages_s"]) == {"tracking", "mapping", "priors", "sinks"}
+    # All 6 frames were handled by finish() (the two-view start never got its 10th frame):
+    # its time is still split into tracking and mapping.
+    assert summary["stats"]["tracking_s_per_frame"] > 0 and summary["stats"]["mapping_s_per_frame"] > 0
     assert summary["bound"]["source"] == "depth_prior"
     assert any("two-view" in n for n in summary["notes"])
     assert (tmp_path / "rec.rrd").stat().st_size > 0
     assert any((out / od.RENDERS_DIR).glob("*.npz"))
+    # One progress line per frame; replayed held frames show their own tracking time.
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if "track loss" in ln]
+    assert [int(ln.split()[1]) for ln in lines] == list(range(6))
+    assert all(ln.endswith("s tracking") for ln in lines)
 
 
 @pytest.mark.parametrize("priors", ["none", "oracle"])  # oracle: the NaN frame is among those held
