@@ -146,16 +146,16 @@ def run_slam(req: RunRequest) -> Path:
                      f"shift {slam.scale_rule[1]:.4g}: {how}")
     if pacer.dropped:
         notes.append(f"--realtime dropped {pacer.dropped} frames (not in trajectory.tum)")
+    track_pf, map_pf = timer.seconds.tracking / max(n, 1), timer.seconds.mapping / max(n, 1)
     s = write_summary(
         out, frames=n, preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
         interrupted=interrupted, bound=slam.bound, source=req.source, notes=notes,
         intrinsics=intrinsics_dict(intr),
         config=config_mod.to_dict(cfg),
         stats={"keyframes": len(slam.keyframes), "lost_frames": slam.lost_frames, "dropped_frames": pacer.dropped,
-               "tracking_s_per_frame": timer.seconds.tracking / max(n, 1),
-               "mapping_s_per_frame": timer.seconds.mapping / max(n, 1),
+               "tracking_s_per_frame": track_pf, "mapping_s_per_frame": map_pf,
                "skipped_corrupt_source_frames": getattr(source, "skipped_frames", 0)},
     )
-    print(f"{n} frames in {s.wall_s:.0f} s ({s.seconds_per_frame:.1f} s/frame: tracking {timer.seconds.tracking / max(n, 1):.1f}, "
-          f"mapping {timer.seconds.mapping / max(n, 1):.1f}); {len(slam.lost_frames)} lost; outputs in {out}", flush=True)
+    print(f"{n} frames in {s.wall_s:.0f} s ({s.seconds_per_frame:.1f} s/frame: tracking {track_pf:.1f}, "
+          f"mapping {map_pf:.1f}); {len(slam.lost_frames)} lost; outputs in {out}", flush=True)
     return out
