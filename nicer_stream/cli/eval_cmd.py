@@ -16,6 +16,7 @@ _ROWS = [
     ("RPE trans", "rpe_trans_m", "m"),
     ("RPE rot", "rpe_rot_deg", "deg"),
     ("depth L1", "depth_l1_m", "m"),
+    ("depth L1, trajectory Sim(3)", "depth_l1_pose_aligned_m", "m"),
     ("PSNR", "psnr_db", "dB"),
     ("SSIM", "ssim", ""),
 ]
@@ -34,7 +35,10 @@ def _fmt(value: float | None, unit: str) -> str:
 def format_table(rep: od.EvalReport) -> str:
     """Human-readable two-column table of an EvalReport (null shown as '-')."""
     rows = [(name, _fmt(getattr(rep, key), unit)) for name, key, unit in _ROWS]
+    rows.append(("scene alignment", rep.scene_alignment or "-"))
     rows += [(name, _fmt(getattr(rep.mesh, key), unit)) for name, key, unit in _MESH_ROWS]
+    rows += [(f"{name}, trajectory Sim(3)", _fmt(getattr(rep.mesh_pose_aligned, key), unit))
+             for name, key, unit in _MESH_ROWS[:3]]
     rows.append(("mesh reference", rep.mesh.reference or "-"))
     v = rep.evaluated_views
     size = f" at {v.width}x{v.height}" if v.width else ""

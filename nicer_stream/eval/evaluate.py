@@ -1,8 +1,11 @@
 """Evaluate an output directory (trajectory.tum, mesh.ply, renders/, summary.json) against a source's GT.
 
-The estimate lives in the SLAM world; everything is compared in the GT world
-after the Umeyama Sim(3) alignment of camera centres (trajectory.py). Missing
-inputs give None (null) metrics; malformed files raise one-line UserErrors.
+The estimate lives in the SLAM world. The trajectory is compared after the Umeyama
+Sim(3) alignment of camera centres (trajectory.py). The scene (depth, mesh) is compared
+under the trajectory's Sim(3) refined by ICP of the mesh onto the GT surface, as the
+paper aligns monocular meshes (registration.py); the metrics under the trajectory's
+Sim(3) alone are reported next to them. Missing inputs give None (null) metrics;
+malformed files raise one-line UserErrors.
 """
 from __future__ import annotations
 
@@ -14,7 +17,7 @@ import numpy as np
 import trimesh
 
 from nicer_stream.errors import UserError
-from nicer_stream.eval import image, mesh as mesh_m, reference, trajectory
+from nicer_stream.eval import image, mesh as mesh_m, reference, registration, trajectory
 from nicer_stream.io import output_dir as od
 from nicer_stream.io.trajectory import read_tum
 from nicer_stream.types import Frame
@@ -90,21 +93,25 @@ def _trajectory_metrics(rep: od.EvalReport, est: np.ndarray, gt: np.ndarray) -> 
     rep.ate_se3_rmse_m = trajectory.ate(est, gt, with_scale=False).rmse_m
     r = trajectory.rpe(est, gt, delta=1, scale=sim.alignment.scale)
     rep.rpe_trans_m, rep.rpe_rot_deg = r.trans_rmse_m, r.rot_rmse_deg
-    scene = trajectory.pose_sim3(est, gt)
-    rep.scene_scale = scene.scale
-    return scene
+    return trajectory.pose_sim3(est, gt)
 
 
-def _image_metrics(rep: od.EvalReport, views: list[_View], scale: float | None) -> None:
-    """Per-view PSNR/SSIM/depth L1, averaged over views."""
+def _depth_l1(views: list[_View], scale: float) -> float | None:
+    """Mean over views of the per-view depth L1 with the estimate scaled by `scale`."""
+    l1 = [image.depth_l1(v.depth, v.gt_depth, scale) for v in views if v.depth is not None and v.gt_depth is not None]
+    l1 = [x for x in l1 if x is not None]
+    return float(np.mean(l1)) if l1 else None
+
+
+def _image_metrics(rep: od.EvalReport, views: list[_View], scale: float | None, pose_scale: float | None) -> None:
+    """Per-view PSNR/SSIM/depth L1 (under `scale`, and under the trajectory's `pose_scale`), averaged over views."""
     if not views:
         return
     rep.psnr_db = float(np.mean([image.psnr(v.rgb, v.gt_rgb) for v in views]))
     rep.ssim = float(np.mean([image.ssim(v.rgb, v.gt_rgb) for v in views]))
     if scale is not None:
-        l1 = [image.depth_l1(v.depth, v.gt_depth, scale) for v in views if v.depth is not None and v.gt_depth is not None]
-        l1 = [x for x in l1 if x is not None]
-        rep.depth_l1_m = float(np.mean(l1)) if l1 else None
+        rep.depth_l1_m = _depth_l1(views, scale)
+        rep.depth_l1_pose_aligned_m = _depth_l1(views, pose_scale)
     rep.evaluated_views = od.EvaluatedViews(
         frame_indices=[v.frame_index for v in views], width=views[0].rgb.shape[1], height=views[0].rgb.shape[0]
     )
@@ -118,12 +125,6 @@ def _load_mesh(path: Path) -> trimesh.Trimesh | None:
     except Exception as e:  # trimesh raises many types on corrupt files
         raise UserError(f"cannot read mesh {path} ({e}): delete it or rerun") from None
     return m if isinstance(m, trimesh.Trimesh) and len(m.faces) else None
-
-
-def _sim3_matrix(a: trajectory.Sim3) -> np.ndarray:
-    M = np.eye(4)
-    M[:3, :3], M[:3, 3] = a.scale * a.R, a.t
-    return M
 
 
 def evaluate_output_dir(
@@ -171,8 +172,7 @@ def evaluate_output_dir(
         pairs = [(est_T[i], poses[k]) for i, k in enumerate(j) if poses[k] is not None]
         if pairs:
             align = _trajectory_metrics(rep, np.stack([p[0] for p in pairs]), np.stack([p[1] for p in pairs]))
-    _image_metrics(rep, views, None if align is None else align.scale)
-
+    scene = align
     if est_mesh is not None and align is not None:
         ref, kind = None, None
         if gt_mesh is not None:
@@ -181,8 +181,22 @@ def evaluate_output_dir(
         elif builder is not None:
             ref, kind = builder.build(), "gt_depth_points"
         if ref is not None and len(ref.points):
-            est_mesh = est_mesh.copy()
-            est_mesh.apply_transform(_sim3_matrix(align))
-            m = mesh_m.mesh_metrics(mesh_m.sample_mesh(est_mesh, mesh_samples, seed=seed), ref, threshold)
-            rep.mesh = od.MeshReport(m.acc_m, m.comp_m, m.comp_ratio, m.normal_consistency, kind)
+            est = mesh_m.sample_mesh(est_mesh, mesh_samples, seed=seed)  # estimate world
+            rep.mesh_pose_aligned = _mesh_report(est, align, ref, threshold, kind)
+            if ref.normals is not None and registration.pins_similarity(ref.points, ref.normals):
+                scene = registration.icp_sim3(est.points, ref.points, align, seed=seed)
+                rep.scene_alignment = "icp"
+            rep.mesh = _mesh_report(est, scene, ref, threshold, kind)
+    if scene is not None:
+        rep.scene_scale = scene.scale
+        rep.scene_alignment = rep.scene_alignment or "poses"
+    _image_metrics(rep, views, None if scene is None else scene.scale, None if align is None else align.scale)
     return rep
+
+
+def _mesh_report(est: mesh_m.SurfaceSamples, a: trajectory.Sim3, ref: mesh_m.SurfaceSamples, threshold: float,
+                 kind: str) -> od.MeshReport:
+    """Mesh metrics of estimate samples (estimate world) moved into the GT world by `a`."""
+    normals = None if est.normals is None else est.normals @ a.R.T
+    m = mesh_m.mesh_metrics(mesh_m.SurfaceSamples(a.apply_points(est.points), normals), ref, threshold)
+    return od.MeshReport(m.acc_m, m.comp_m, m.comp_ratio, m.normal_consistency, kind)

@@ -121,10 +121,18 @@ class EvalReport:
     priors: list[str] = field(default_factory=list)
     sim3_scale: float | None = None
     scene_scale: float | None = None
-    """Scale of the Sim(3) that compares depth and meshes: rotation from the camera
-    orientations, scale and translation from the centres (eval/trajectory.pose_sim3)."""
+    """Scale of the Sim(3) that compares depth and meshes (`scene_alignment`)."""
+    scene_alignment: str | None = None
+    """'icp': the trajectory's Sim(3) (eval/trajectory.pose_sim3) refined by registering
+    the mesh to the GT surface, as the paper evaluates monocular meshes; 'poses': the
+    trajectory's Sim(3) alone (no mesh, no GT surface, or one that cannot pin a similarity,
+    such as a single plane)."""
+    depth_l1_pose_aligned_m: float | None = None
+    """depth L1 under the trajectory's Sim(3) scale alone (equal to depth_l1_m with 'poses')."""
     evaluated_views: EvaluatedViews = field(default_factory=EvaluatedViews)
     mesh: MeshReport = field(default_factory=MeshReport)
+    mesh_pose_aligned: MeshReport = field(default_factory=MeshReport)
+    """The mesh metrics under the trajectory's Sim(3) alone, before registration."""
 
 
 def _finite_or_null(x: Any) -> Any:
@@ -196,6 +204,7 @@ def read_eval(out_dir: str | Path) -> EvalReport:
     data = _read_json(path)
     if isinstance(data.get("evaluated_views"), dict):
         data["evaluated_views"] = _build(EvaluatedViews, data["evaluated_views"], path)
-    if isinstance(data.get("mesh"), dict):
-        data["mesh"] = _build(MeshReport, data["mesh"], path)
+    for key in ("mesh", "mesh_pose_aligned"):
+        if isinstance(data.get(key), dict):
+            data[key] = _build(MeshReport, data[key], path)
     return _build(EvalReport, data, path)

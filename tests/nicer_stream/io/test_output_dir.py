@@ -11,7 +11,8 @@ from nicer_stream.io import output_dir as od
 SUMMARY_KEYS = {"frames", "preset", "device", "priors", "wall_s", "stages_s", "seconds_per_frame",
                 "peak_rss_mb", "versions", "interrupted"}
 EVAL_KEYS = {"ate_rmse_m", "ate_se3_rmse_m", "rpe_trans_m", "rpe_rot_deg", "depth_l1_m", "psnr_db", "ssim",
-             "priors", "sim3_scale", "scene_scale", "evaluated_views", "mesh"}
+             "priors", "sim3_scale", "scene_scale", "scene_alignment", "depth_l1_pose_aligned_m", "evaluated_views",
+             "mesh", "mesh_pose_aligned"}
 MESH_KEYS = {"acc_m", "comp_m", "comp_ratio", "normal_consistency", "reference"}
 
 
