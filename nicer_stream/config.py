@@ -225,7 +225,8 @@ class MeshConfig:
     resolution: int = 512
     """Marching-cubes grid resolution per axis."""
     visibility_margin_m: float = 0.1
-    """Faces further than this behind every rendered depth map are culled (never seen)."""
+    """Faces further than this behind every rendered depth map are culled (never seen), and
+    so are faces this far in front of some rendered depth map (seen through: free space)."""
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ import trimesh
 from nicer_stream.config import SlamConfig
 from nicer_stream.io.output_dir import RENDERS_DIR, render_name
 from nicer_stream.mesh import cull_to_frustums, extract_mesh
-from nicer_stream.mesh.visibility import DepthView, cull_occluded
+from nicer_stream.mesh.visibility import DepthView, cull_by_rendered_depth
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.render.renderer import RenderedImage, render_image
@@ -54,7 +54,7 @@ def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intr
     """Marching cubes over the bound, evaluating the full SDF only in voxels the mapping
     sampled (elsewhere the map knows nothing: treated as free space), then culled to
     the cameras' frustums and to what the rendered depth says they see (no surfaces
-    behind walls). Vertex colours from the colour network."""
+    behind walls, none in space the renders see through). Vertex colours from the colour network."""
     resolution = cfg.mesh.resolution
     lo, hi = model.bound.world_min_max()
     observed = beta.counts > 0
@@ -72,4 +72,4 @@ def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intr
     if not len(mesh.faces):
         return mesh
     mesh = cull_to_frustums(mesh, poses, intr)
-    return cull_occluded(mesh, depth_views(model, beta, poses, intr, cfg), margin=cfg.mesh.visibility_margin_m)
+    return cull_by_rendered_depth(mesh, depth_views(model, beta, poses, intr, cfg), margin=cfg.mesh.visibility_margin_m)
