@@ -53,6 +53,7 @@ n_uniform = 2
 chunk_rays = 4096
 [mapping]
 iters = 3
+final_iters = 4
 first_iters = 5
 rays = 128
 eikonal_points = 16

@@ -132,11 +132,15 @@ class SlamSystem:
 
     def finish(self) -> list[Event]:
         """Start from what is held if the sequence ended first; final mapping over the
-        latest frame if it was not just mapped."""
+        latest frame's window: `final_iters` when set, else `iters` if it was not just mapped."""
         if self.pending:
             events = self._start_two_view(None, None)
             return events + self.finish()
-        if self.model is None or (len(self.order) - 1) % self.cfg.mapping.every == 0:
+        if self.model is None:
+            return []
+        if self.cfg.mapping.final_iters is not None:
+            return [self._map(self.order[-1], self.cfg.mapping.final_iters)]
+        if (len(self.order) - 1) % self.cfg.mapping.every == 0:
             return []
         return [self._map(self.order[-1], self.cfg.mapping.iters)]
 

@@ -26,7 +26,7 @@ def test_paper_values():
     assert m.rays == 8096 and t.rays == 1024
     assert m.iters == 100 and t.iters == 100
     assert (m.window_random, m.window_recent, m.recent_pool) == (5, 10, 20)  # + current = 16
-    assert m.keyframe_every == 10 and m.every == 5
+    assert m.keyframe_every == 10 and m.every == 5 and m.final_iters is None
     assert (m.fine_start, m.ba_start) == (0.25, 0.75)
     assert (mo.coarse_res, mo.coarse_dim, mo.coarse_hidden, mo.pe_levels) == (32, 32, 64, 6)
     assert (mo.fine_levels, mo.fine_res_min, mo.fine_res_max, mo.fine_dim) == (8, 32, 128, 4)
