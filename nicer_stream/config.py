@@ -123,9 +123,9 @@ class MappingConfig:
     iters: int = 100
     """Iterations per mapping call."""
     final_iters: int | None = None
-    """Iterations of a closing mapping call in `finish()` over the last frame's window, run
-    even when that frame was just mapped; None: the paper's schedule (the last frame is
-    mapped with `iters` only if the schedule had not just done so)."""
+    """Iterations of a closing mapping call in `finish()` over the last frame's window with
+    the poses fixed, run even when that frame was just mapped; None: the paper's schedule
+    (the last frame is mapped with `iters`, local BA included, unless it was just mapped)."""
     first_iters: int = 100
     """Iterations of the first mapping call (initialisation from the sphere)."""
     rays: int = 8096

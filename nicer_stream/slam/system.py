@@ -132,14 +132,15 @@ class SlamSystem:
 
     def finish(self) -> list[Event]:
         """Start from what is held if the sequence ended first; final mapping over the
-        latest frame's window: `final_iters` when set, else `iters` if it was not just mapped."""
+        latest frame's window: `final_iters` with the poses fixed when set, else `iters` if it
+        was not just mapped."""
         if self.pending:
             events = self._start_two_view(None, None)
             return events + self.finish()
         if self.model is None:
             return []
         if self.cfg.mapping.final_iters is not None:
-            return [self._map(self.order[-1], self.cfg.mapping.final_iters)]
+            return [self._map(self.order[-1], self.cfg.mapping.final_iters, bundle_adjust=False)]
         if (len(self.order) - 1) % self.cfg.mapping.every == 0:
             return []
         return [self._map(self.order[-1], self.cfg.mapping.iters)]
@@ -244,10 +245,10 @@ class SlamSystem:
         self.timestamps[frame.index] = frame.timestamp
         return FrameTracked(frame.index, frame.timestamp, T.double().cpu().numpy(), float("nan"), 0.0, reason)
 
-    def _map(self, current: int, iters: int) -> MapUpdated:
+    def _map(self, current: int, iters: int, bundle_adjust: bool = True) -> MapUpdated:
         window = select_window(self.keyframes, current, self.cfg.mapping, self.rng)
         anchor = self.order[0]
-        ba = ba_frames(window, current, anchor) if self.cfg.mapping.ba_start < 1.0 else set()
+        ba = ba_frames(window, current, anchor) if bundle_adjust and self.cfg.mapping.ba_start < 1.0 else set()
         mode = self.cfg.loss.slam_prior_alignment
         if mode == "map":
             for k in window:
