@@ -184,8 +184,9 @@ def evaluate_output_dir(
             est = mesh_m.sample_mesh(est_mesh, mesh_samples, seed=seed)  # estimate world
             rep.mesh_pose_aligned = _mesh_report(est, align, ref, threshold, kind)
             if ref.normals is not None and registration.pins_similarity(ref.points, ref.normals):
-                scene = registration.icp_sim3(est.points, ref.points, align, seed=seed)
-                rep.scene_alignment = "icp"
+                icp = registration.icp_sim3(est.points, ref.points, align, seed=seed)
+                if registration.scale_change_trusted(align, icp):
+                    scene, rep.scene_alignment = icp, "icp"
             rep.mesh = _mesh_report(est, scene, ref, threshold, kind)
     if scene is not None:
         rep.scene_scale = scene.scale

@@ -125,8 +125,8 @@ class EvalReport:
     scene_alignment: str | None = None
     """'icp': the trajectory's Sim(3) (eval/trajectory.pose_sim3) refined by registering
     the mesh to the GT surface, as the paper evaluates monocular meshes; 'poses': the
-    trajectory's Sim(3) alone (no mesh, no GT surface, or one that cannot pin a similarity,
-    such as a single plane)."""
+    trajectory's Sim(3) alone (no mesh, no GT surface, one that cannot pin a similarity
+    such as a single plane, or an ICP that changed the scale by more than 10%)."""
     depth_l1_pose_aligned_m: float | None = None
     """depth L1 under the trajectory's Sim(3) scale alone (equal to depth_l1_m with 'poses')."""
     evaluated_views: EvaluatedViews = field(default_factory=EvaluatedViews)

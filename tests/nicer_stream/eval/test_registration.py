@@ -6,7 +6,7 @@ import pytest
 import torch
 import trimesh
 
-from nicer_stream.eval.registration import compose, icp_sim3, pins_similarity
+from nicer_stream.eval.registration import compose, icp_sim3, pins_similarity, scale_change_trusted
 from nicer_stream.eval.trajectory import Sim3
 from nicer_stream.geometry.se3 import so3_exp
 
@@ -64,3 +64,11 @@ def test_a_room_pins_a_similarity_and_a_plane_or_a_sphere_does_not():
     ball = rng.normal(size=(5_000, 3))
     ball /= np.linalg.norm(ball, axis=1, keepdims=True)
     assert not pins_similarity(2.0 * ball, ball)  # spins about its centre
+
+
+def test_scale_changes_beyond_the_limit_are_not_trusted():
+    start = sim3([0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 1.3)
+    assert scale_change_trusted(start, sim3([0.1, 0.0, 0.0], [1.0, 0.0, 0.0], 1.3 * 1.05))
+    assert scale_change_trusted(start, sim3([0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 1.3 / 1.05))
+    assert not scale_change_trusted(start, sim3([0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 1.3 * 1.2))
+    assert not scale_change_trusted(start, sim3([0.0, 0.0, 0.0], [0.0, 0.0, 0.0], 1.3 * 0.55))
