@@ -10,7 +10,7 @@ malformed files raise one-line UserErrors.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -187,7 +187,8 @@ def evaluate_output_dir(
                 icp = registration.icp_sim3(est.points, ref.points, align, seed=seed)
                 if registration.scale_change_trusted(align, icp):
                     scene, rep.scene_alignment = icp, "icp"
-            rep.mesh = _mesh_report(est, scene, ref, threshold, kind)
+            # Without a trusted registration the scene metrics are the trajectory-aligned ones: no second pass.
+            rep.mesh = replace(rep.mesh_pose_aligned) if scene is align else _mesh_report(est, scene, ref, threshold, kind)
     if scene is not None:
         rep.scene_scale = scene.scale
         rep.scene_alignment = rep.scene_alignment or "poses"
