@@ -14,6 +14,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from nicer_stream.model.gather import gather_rows
+from nicer_stream.model.grid_kernel import GridSpec, grid_interp, kernel_available
 
 
 def geometric_resolutions(r_min: int, r_max: int, levels: int) -> list[int]:
@@ -66,6 +67,7 @@ class DenseGrids(nn.Module):
         self.register_buffer("corner_offsets", corner[None, :, 0] * r * r + corner[None, :, 1] * r + corner[None, :, 2], persistent=False)
         self.table = nn.Parameter(torch.randn(sum(sizes), dim) * init_std)
         self._generation = 0
+        self.spec = GridSpec(self.resolutions, offsets, sizes, [False] * len(sizes))
 
     @property
     def out_dim(self) -> int:
@@ -76,9 +78,17 @@ class DenseGrids(nn.Module):
         self._generation += 1
 
     def forward(self, x: torch.Tensor, with_tangent: bool = False):
-        """x (N, 3) in [-1, 1] -> features (N, L*dim) and optionally d/dx (N, 3, L*dim)."""
+        """x (N, 3) in [-1, 1] -> features (N, L*dim) and optionally d/dx (N, 3, L*dim).
+
+        The compiled kernel (`grid_kernel.py`) where available, else the reference paths."""
+        if kernel_available(self.table):
+            return grid_interp(self.table, x.to(self.table.dtype), self.spec, with_tangent)
         if not torch.is_grad_enabled():
             return self._forward_no_grad(x, with_tangent)
+        return self.reference_forward(x, with_tangent)
+
+    def reference_forward(self, x: torch.Tensor, with_tangent: bool = False):
+        """Pure-torch trilinear gather (autograd backward through `gather_rows`)."""
         n = x.shape[0]
         i0, frac, scale = cell_coords(x, self.res)
         r = self.res[None, :]

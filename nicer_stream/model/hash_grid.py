@@ -11,6 +11,7 @@ from torch import nn
 
 from nicer_stream.model.dense_grid import cell_coords, corner_weights, geometric_resolutions
 from nicer_stream.model.gather import gather_rows
+from nicer_stream.model.grid_kernel import GridSpec, grid_interp, kernel_available
 
 _PRIMES = (1, 2654435761, 805459861)
 
@@ -27,13 +28,21 @@ class HashGrids(nn.Module):
         self.register_buffer("dense", torch.tensor([r**3 <= self.size for r in self.resolutions]), persistent=False)
         self.register_buffer("level_offset", torch.arange(levels) * self.size, persistent=False)
         self.table = nn.Parameter((torch.rand(levels * self.size, dim) * 2 - 1) * init_std)
+        self.spec = GridSpec(self.resolutions, [l * self.size for l in range(levels)], [self.size] * levels,
+                             [r**3 > self.size for r in self.resolutions])
 
     @property
     def out_dim(self) -> int:
         return len(self.resolutions) * self.dim
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """x (N, 3) in [-1, 1] -> (N, levels*dim)."""
+        """x (N, 3) in [-1, 1] -> (N, levels*dim): the compiled kernel where available."""
+        if kernel_available(self.table):
+            return grid_interp(self.table, x.to(self.table.dtype), self.spec, False)[0]
+        return self.reference_forward(x)
+
+    def reference_forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Pure-torch hashed trilinear gather."""
         n = x.shape[0]
         i0, frac, _ = cell_coords(x, self.res)
         c = torch.stack([i0, i0 + 1], dim=-1)  # (N, L, 3, 2) per-axis corner coordinates

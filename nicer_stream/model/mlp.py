@@ -8,7 +8,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-_SOFTPLUS_BETA = 100.0  # VolSDF/MonoSDF geometry activation
+from nicer_stream.model.fused_mlp import SOFTPLUS_BETA as _SOFTPLUS_BETA, FusedTangentMLP, softplus_beta
 
 
 class TangentMLP(nn.Module):
@@ -22,7 +22,20 @@ class TangentMLP(nn.Module):
         nn.init.zeros_(self.layers[-1].bias)
 
     def forward(self, h: torch.Tensor, tangent: torch.Tensor | None = None):
-        """h (N, in), tangent (N, 3, in) or None -> out (N, out), tangent (N, 3, out) or None."""
+        """h (N, in), tangent (N, 3, in) or None -> out (N, out), tangent (N, 3, out) or None.
+
+        With a tangent: one fused autograd node (`fused_mlp.py`); without: plain layers."""
+        if tangent is not None:
+            params = [p for layer in self.layers for p in (layer.weight, layer.bias)]
+            return FusedTangentMLP.apply(h, tangent, len(self.layers), *params)
+        for i, layer in enumerate(self.layers):
+            h = layer(h)
+            if i < len(self.layers) - 1:
+                h = softplus_beta(h)
+        return h, None
+
+    def reference_forward(self, h: torch.Tensor, tangent: torch.Tensor | None = None):
+        """The same function through autograd over plain ops (the tests' reference)."""
         for i, layer in enumerate(self.layers):
             h = layer(h)
             if tangent is not None:

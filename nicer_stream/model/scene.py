@@ -1,6 +1,8 @@
 """The scene model: geometry + colour inside a SceneBound, with optimiser parameter groups."""
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import torch
 from torch import nn
 
@@ -35,6 +37,20 @@ class SceneModel(nn.Module):
     def grid_tables(self) -> list[torch.Tensor]:
         """The feature-grid tables (coarse, fine, colour): nearly all of the parameters."""
         return [self.geometry.coarse_grid.table, self.geometry.fine_grid.table, self.color.grid.table]
+
+    @contextmanager
+    def frozen(self):
+        """No parameter requires grad inside: a pose-only backward (tracking) then skips every
+        parameter gradient, which `autograd.grad(loss, [pose])` alone would not (custom nodes
+        on the path to the pose compute all of their inputs' gradients)."""
+        saved = [(p, p.requires_grad) for p in self.parameters()]
+        for p, _ in saved:
+            p.requires_grad_(False)
+        try:
+            yield self
+        finally:
+            for p, flag in saved:
+                p.requires_grad_(flag)
 
     def parameters_changed(self) -> None:
         """Call after every optimiser step: drops caches derived from the parameters."""

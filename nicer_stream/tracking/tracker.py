@@ -54,6 +54,10 @@ class Tracker:
         return ok if ok.any() else None
 
     def track(self, frame: MapFrame, T_init: torch.Tensor) -> TrackingResult:
+        with self.model.frozen():
+            return self._track(frame, T_init)
+
+    def _track(self, frame: MapFrame, T_init: torch.Tensor) -> TrackingResult:
         t0 = time.perf_counter()
         xi = torch.zeros(6, device=T_init.device, requires_grad=True)
         opt = torch.optim.Adam([xi], lr=self.cfg.lr)

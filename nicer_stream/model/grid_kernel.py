@@ -1,0 +1,99 @@
+"""The compiled CPU kernel for multi-level grid interpolation (`kernels/grid_interp.cpp`).
+
+Built on first use with torch's C++ extension loader (g++ and ninja; ~1 minute once, then
+cached under ~/.cache/torch_extensions). Where it cannot be built, on a GPU, or with
+NICER_STREAM_KERNELS=0, the grids use their pure-torch reference paths (same values and
+gradients; tests compare both).
+"""
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+import torch
+
+log = logging.getLogger(__name__)
+_SOURCE = Path(__file__).parent / "kernels" / "grid_interp.cpp"
+_module = None
+_failed = False
+
+
+def _load():
+    global _module, _failed
+    if _module is None and not _failed:
+        try:
+            from torch.utils.cpp_extension import load
+
+            _module = load(name="nicer_stream_grid_interp", sources=[str(_SOURCE)],
+                           extra_cflags=["-O3", "-fopenmp"], extra_ldflags=["-fopenmp"], verbose=False)
+        except Exception as e:  # no compiler, no ninja, ...: the reference path still works
+            _failed = True
+            log.warning("grid kernel not built (%s): using the slower pure-torch path", str(e).splitlines()[0][:200])
+    return _module
+
+
+def kernel_available(t: torch.Tensor) -> bool:
+    """True when `t` (a table or points) can go through the compiled kernel."""
+    if t.device.type != "cpu" or t.dtype not in (torch.float32, torch.float64):
+        return False
+    if os.environ.get("NICER_STREAM_KERNELS", "1") == "0":
+        return False
+    return _load() is not None
+
+
+class GridSpec:
+    """Per-level layout of a grid table: vertex resolution, first row, rows, hashed."""
+
+    def __init__(self, res: list[int], offsets: list[int], sizes: list[int], hashed: list[bool]) -> None:
+        self.res = torch.tensor(res, dtype=torch.long)
+        self.offsets = torch.tensor(offsets, dtype=torch.long)
+        self.sizes = torch.tensor(sizes, dtype=torch.long)
+        self.hashed = torch.tensor(hashed, dtype=torch.bool)
+
+    def args(self):
+        return self.res, self.offsets, self.sizes, self.hashed
+
+
+class GridInterp(torch.autograd.Function):
+    """apply(table (R, C), x (N, 3), spec, with_jac) -> (out (N, L*C), jac (N, 3, L*C) or empty).
+
+    Like `gather.gather_rows`, a leaf table that already holds a `.grad` buffer gets its
+    gradient added in place (`.backward()` semantics)."""
+
+    @staticmethod
+    def forward(ctx, table, x, spec: GridSpec, with_jac: bool):
+        x = x.contiguous()
+        out, jac = _load().grid_forward(table.detach(), x.detach(), *spec.args(), with_jac)
+        ctx.save_for_backward(x)
+        ctx.table, ctx.spec = table, spec
+        ctx.mark_non_differentiable(jac) if not with_jac else None
+        return out, jac
+
+    @staticmethod
+    def backward(ctx, g_out, g_jac):
+        (x,) = ctx.saved_tensors
+        table = ctx.table
+        need_table, need_x = ctx.needs_input_grad[0], ctx.needs_input_grad[1]
+        g_out = torch.zeros(0) if g_out is None else g_out
+        in_place = need_table and table.is_leaf and table.grad is not None
+        grad_table = None
+        if need_table:
+            grad_table = table.grad if in_place else torch.zeros_like(table)
+        if g_out.numel() == 0:
+            n = x.shape[0]
+            g_out = torch.zeros(n, ctx.spec.res.numel() * table.shape[1], dtype=table.dtype)
+        g_jac = torch.zeros(0, dtype=table.dtype) if g_jac is None else g_jac.contiguous()
+        g_x = _load().grid_backward(table.detach(), x, *ctx.spec.args(), g_out.contiguous(), g_jac,
+                                    grad_table if grad_table is not None else torch.zeros(0, dtype=table.dtype), need_x)
+        return (None if in_place else grad_table), (g_x if need_x else None), None, None
+
+
+def grid_interp(table: torch.Tensor, x: torch.Tensor, spec: GridSpec, with_jac: bool):
+    """Features (N, L*C) and, if `with_jac`, d/dx (N, 3, L*C) (else None) through the kernel."""
+    out, jac = GridInterp.apply(table, x, spec, with_jac)
+    return out, (jac if with_jac else None)
+
+
+if __name__ == "__main__":  # `make setup` builds the kernel once, so the first run does not wait for it
+    print("grid kernel:", "built" if kernel_available(torch.zeros(1)) else "not available (pure-torch path)")

@@ -1,0 +1,126 @@
+"""Per-iteration cost of mapping and tracking at `fast` and `paper` sizes (Replica clip,
+oracle priors, GT poses: a benchmark of compute, not of accuracy), the FLOPs each iteration
+needs (counted from the layer shapes) and this CPU's sgemm rate, measured in the same run.
+
+Usage: .venv/bin/python scripts/iter_bench.py [--presets fast,paper] [--iters N] [--profile]
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import torch
+
+from nicer_stream import config as config_mod
+from nicer_stream.mapping.mapper import Mapper
+from nicer_stream.model.bound import bound_from_points
+from nicer_stream.model.scene import SceneModel
+from nicer_stream.render.beta import BetaField
+from nicer_stream.runtime.frame_priors import make_engine, map_frame
+from nicer_stream.tracking.tracker import Tracker
+from sources import open_source
+from sources.base import SourceOptions
+
+REPLICA = "replica:../shared/data/replica_room0_20f"
+
+
+def sgemm_gflops(n: int = 2048, reps: int = 5) -> float:
+    a, b = torch.randn(n, n), torch.randn(n, n)
+    a @ b
+    t = time.perf_counter()
+    for _ in range(reps):
+        a @ b
+    return 2 * n**3 * reps / (time.perf_counter() - t) / 1e9
+
+
+def mlp_macs(dims: list[int]) -> int:
+    return sum(a * b for a, b in zip(dims[:-1], dims[1:]))
+
+
+def flops_per_iteration(cfg, rays: int, n_probe: int, n_grad: int, eikonal: int, tracking: bool) -> float:
+    """Matmul FLOPs of one iteration (the MLPs dominate; grids and compositing are memory-bound).
+    Probe: forward of coarse + fine geometry. Samples with gradient: geometry forward with 3
+    tangents (4x), colour forward, and a backward of ~2x the forward."""
+    m = cfg.model
+    pe = 3 + 6 * m.pe_levels
+    coarse = mlp_macs([pe + m.coarse_dim, m.coarse_hidden, 1 + m.geo_feature_dim])
+    fine = mlp_macs([pe + m.fine_levels * m.fine_dim] + [m.fine_hidden] * m.fine_layers + [1 + m.geo_feature_dim])
+    color_in = 6 + 3 + 6 * m.view_pe_levels + 2 * m.geo_feature_dim + m.color_levels * m.color_dim
+    color = mlp_macs([color_in] + [m.color_hidden] * m.color_layers + [3])
+    geo = coarse + fine
+    probe = rays * n_probe * geo
+    fwd = rays * n_grad * (4 * geo + color) + eikonal * 4 * geo
+    return 2 * (probe + 3 * fwd)
+
+
+def load(n_frames: int, max_side: int):
+    src = open_source(REPLICA, SourceOptions(max_side=max_side, max_frames=n_frames))
+    frames = list(src)
+    engine = make_engine("oracle", None, "cpu")
+    mfs = [map_frame(f, engine, [frames[j] for j in (i - 2, i + 2) if 0 <= j < len(frames)], "cpu")
+           for i, f in enumerate(frames)]
+    poses = {f.index: torch.tensor(f.gt_pose, dtype=torch.float32) for f in frames}
+    pts = np.stack([f.gt_pose[:3, 3] for f in frames])
+    bound = bound_from_points(np.concatenate([pts - 2.5, pts + 2.5]), 1.0, "config")
+    return mfs, poses, bound
+
+
+def bench(name: str, iters: int, profile: bool) -> dict:
+    cfg = config_mod.preset(name)
+    side = cfg.max_side or 1200
+    mfs, poses, bound = load(5, side if name == "fast" else 320)
+    torch.manual_seed(0)
+    model = SceneModel(cfg.model, bound)
+    beta = BetaField(cfg.render)
+    mapper = Mapper(model, beta, cfg, 0)
+    # Warm-up (and a map that is not the initial sphere), then timed iterations in the last stage.
+    mapper.optimise(mfs, poses, 3, ba_indices={mfs[-1].index})
+    t = time.perf_counter()
+    mapper.optimise(mfs, poses, iters, ba_indices={mfs[-1].index})
+    map_s = (time.perf_counter() - t) / iters
+    tracker = Tracker(model, beta, cfg.tracking, cfg.render, 0)
+    tr_cfg = tracker.cfg
+    tracker.cfg = type(tr_cfg)(**{**tr_cfg.__dict__, "iters": iters})
+    tracker.track(mfs[-1], poses[mfs[-1].index])
+    t = time.perf_counter()
+    tracker.track(mfs[-1], poses[mfs[-1].index])
+    track_s = (time.perf_counter() - t) / (iters + 1)
+    if profile:
+        from torch.profiler import ProfilerActivity, profile as prof
+        with prof(activities=[ProfilerActivity.CPU]) as p:
+            mapper.optimise(mfs, poses, 3, ba_indices={mfs[-1].index})
+        print(f"--- {name}: mapping profile (3 iterations)")
+        print(p.key_averages().table(sort_by="self_cpu_time_total", row_limit=12))
+        with prof(activities=[ProfilerActivity.CPU]) as p:
+            tracker.cfg = type(tr_cfg)(**{**tr_cfg.__dict__, "iters": 5})
+            tracker.track(mfs[-1], poses[mfs[-1].index])
+        print(f"--- {name}: tracking profile (6 iterations)")
+        print(p.key_averages().table(sort_by="self_cpu_time_total", row_limit=12))
+    r = cfg.render
+    tr = tracker.render
+    m_flop = flops_per_iteration(cfg, cfg.mapping.rays, r.n_probe, r.n_importance + r.n_uniform, cfg.mapping.eikonal_points, False)
+    t_flop = flops_per_iteration(cfg, cfg.tracking.rays, tr.n_probe, tr.n_importance + tr.n_uniform, 0, True)
+    return {"preset": name, "map_s": map_s, "track_s": track_s, "map_gflop": m_flop / 1e9, "track_gflop": t_flop / 1e9}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--presets", default="fast,paper")
+    ap.add_argument("--iters", type=int, default=5)
+    ap.add_argument("--profile", action="store_true")
+    a = ap.parse_args()
+    print(f"torch {torch.__version__}, threads {torch.get_num_threads()}", flush=True)
+    rows = [bench(p, a.iters if p == "fast" else max(1, a.iters // 5), a.profile) for p in a.presets.split(",")]
+    peak = sgemm_gflops()
+    print(f"\nsgemm 2048^3: {peak:.1f} GFLOP/s")
+    print("| preset | mapping s/iter | GFLOP | GFLOP/s | x sgemm | tracking s/iter | GFLOP | GFLOP/s | x sgemm |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        mg, tg = r["map_gflop"] / r["map_s"], r["track_gflop"] / r["track_s"]
+        print(f"| {r['preset']} | {r['map_s']:.3f} | {r['map_gflop']:.1f} | {mg:.1f} | {peak / mg:.1f} "
+              f"| {r['track_s']:.3f} | {r['track_gflop']:.2f} | {tg:.1f} | {peak / tg:.1f} |")
+
+
+if __name__ == "__main__":
+    main()
