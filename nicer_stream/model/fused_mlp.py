@@ -47,7 +47,9 @@ class FusedTangentMLP(torch.autograd.Function):
                 s = torch.sigmoid(z * SOFTPLUS_BETA)
                 tz = x[:, 1:]
                 saved += [inp, s, tz]
-                x = torch.cat([softplus_beta(z)[:, None], tz * s[:, None]], 1)
+                x = torch.empty_like(x)  # written in place: no cat of the value and tangent rows
+                x[:, 0] = softplus_beta(z)
+                torch.mul(tz, s[:, None], out=x[:, 1:])
             else:
                 saved.append(inp)
                 x[:, 0] += b
@@ -78,9 +80,10 @@ class FusedTangentMLP(torch.autograd.Function):
                 inp, s, tz = acts[pos - 3:pos]
                 pos -= 3
                 # g holds dL/d[h'; T'] of layer i: turn it into dL/d[z; Tz].
+                # g is the fresh product of the layer above: updated in place.
                 g_s = (g[:, 1:] * tz).sum(1)
-                gz = g[:, 0] * s + g_s * (SOFTPLUS_BETA * s * (1 - s))
-                g = torch.cat([gz[:, None], g[:, 1:] * s[:, None]], 1)
+                g[:, 0] = g[:, 0] * s + g_s * (SOFTPLUS_BETA * s * (1 - s))
+                g[:, 1:] *= s[:, None]
             w = weights[i]
             if need_params:
                 flat_g = g.reshape(-1, g.shape[-1])
