@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # The measurements named in the issues (long: run one at a time on a 2-core CPU).
-# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|run-none|run-synth|run10|run10-paper|flow] [OUTROOT]
+# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|run-none|run-synth|run10|run10-paper|flow|speedup] [OUTROOT]
+# speedup: the Replica `run` of commit BASE (default c64946b; a git worktree in OUTROOT/base_worktree)
+#   and of this tree (uncommitted edits included) back to back, then scripts/speedup_table.py
+#   (~15 min). EXTRA="..." appends arguments to both runs (e.g. EXTRA="--max-frames 3").
 # Tables: .venv/bin/python scripts/eval_table.py OUT... [--reference OUTROOT/map_oracle]
 # run10-paper needs hours here: Ctrl-C writes what was computed (trajectory so far, mesh, eval).
 set -euo pipefail
@@ -9,6 +12,22 @@ NS=.venv/bin/nicer-stream
 REPLICA=replica:../shared/data/replica_room0_20f
 OUT=${2:-runs/bench}
 t() { /usr/bin/time -f "wall %e s, peak RSS %M KB" "$@"; }
+# speedup_run TREE OUTDIR: `nicer-stream run` of the code in TREE (not the editable install),
+# timed into OUTDIR/time.txt (read by speedup_table.py).
+speedup_run() {
+  local tree=$1 dir=$2 root=$PWD py=$PWD/.venv/bin/python
+  # The tree's packages must win over the editable install's (its finder comes after PYTHONPATH).
+  (cd "$tree" && PYTHONPATH="$tree" $py -c 'import os, sys, nicer_stream, sources, sinks
+tree = os.path.realpath(sys.argv[1]) + os.sep
+bad = [m.__file__ for m in (nicer_stream, sources, sinks) if not os.path.realpath(m.__file__).startswith(tree)]
+sys.exit(f"imported from outside {sys.argv[1]}: {bad}" if bad else 0)' "$tree")
+  rm -rf "$dir" && mkdir -p "$dir"
+  echo "== $(git -C "$tree" rev-parse --short HEAD) ($tree) -> $dir"
+  # shellcheck disable=SC2086  # EXTRA is split into arguments on purpose
+  (cd "$tree" && PYTHONPATH="$tree" /usr/bin/time -f "%e %M" -o "$dir/time.txt" $py -m nicer_stream.cli.main run \
+     --source "replica:$root/../shared/data/replica_room0_20f" --priors oracle --preset fast --out "$dir" ${EXTRA:-})
+  echo "wall $(cut -d' ' -f1 "$dir/time.txt") s, peak RSS $(cut -d' ' -f2 "$dir/time.txt") KB"
+}
 case "${1:-all}" in
   map)       t $NS map --source $REPLICA --poses gt --priors oracle --preset fast --out $OUT/map_oracle ;;
   map-none)  t $NS map --source $REPLICA --poses gt --priors none --preset fast --out $OUT/map_none ;;
@@ -28,5 +47,18 @@ case "${1:-all}" in
   run10)     t $NS run --source $REPLICA --priors oracle --preset fast --max-frames 10 --out $OUT/run10_fast ;;
   run10-paper) t $NS run --source $REPLICA --priors oracle --preset paper --max-frames 10 --max-side 320 --render-every 100 --out $OUT/run10_paper ;;
   run-synth) t $NS run --source "synthetic:room?frames=100" --priors oracle --preset fast --out $OUT/run_synth ;;
-  *) echo "usage: $0 map|map-none|map-paper|map-synth|run|run-seeds|run-none|run10|run10-paper|run-synth|flow [OUTROOT]"; exit 2 ;;
+  speedup)   BASE=${BASE:-c64946b}
+             base=$(git rev-parse --verify "$BASE^{commit}")
+             mkdir -p "$OUT" && out=$(realpath "$OUT") && wt=$out/base_worktree
+             if [ -e "$wt/.git" ]; then
+               [ "$(git -C "$wt" rev-parse HEAD)" = "$base" ] || git -C "$wt" checkout -q --detach "$base"
+             else
+               git worktree add -q --detach "$wt" "$base"
+             fi
+             speedup_run "$wt" "$out/speedup_base"
+             new=$(git rev-parse --short HEAD)$([ -z "$(git status --porcelain)" ] || echo +edits)
+             speedup_run "$PWD" "$out/speedup_new"
+             .venv/bin/python scripts/speedup_table.py "$out/speedup_base" "$out/speedup_new" \
+               --labels "$(git rev-parse --short "$base")" "$new" ;;
+  *) echo "usage: [BASE=commit] [EXTRA=args] $0 map|map-none|map-paper|map-synth|run|run-seeds|run-none|run10|run10-paper|run-synth|flow|speedup [OUTROOT]"; exit 2 ;;
 esac

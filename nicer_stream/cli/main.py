@@ -13,12 +13,5 @@ app = typer.Typer(
 )
 commands.register(app)
 
-
-@app.callback()
-def _setup() -> None:
-    from nicer_stream.cli.torch_setup import configure_torch
-
-    configure_torch()
-
 if __name__ == "__main__":  # pragma: no cover
     app()

@@ -3,18 +3,22 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import Callable
 
 
 class Progress:
-    """Prints `label i/n ... eta` at most every `every_s` seconds (and at the end)."""
+    """Prints `label i/n loss ... eta` on the first call (after the first iteration), then
+    at most every `every_s` seconds, and at the end."""
 
-    def __init__(self, label: str, every_s: float = 5.0, stream=sys.stderr) -> None:
-        self.label, self.every_s, self.stream = label, every_s, stream
-        self.t0 = time.perf_counter()
+    def __init__(self, label: str, every_s: float = 5.0, stream=None,
+                 clock: Callable[[], float] = time.perf_counter) -> None:
+        self.label, self.every_s, self.clock = label, every_s, clock
+        self.stream = sys.stderr if stream is None else stream  # looked up now: pytest swaps sys.stderr
+        self.t0 = clock()
         self.last = -1e9
 
     def __call__(self, i: int, n: int, loss: float | None = None) -> None:
-        now = time.perf_counter()
+        now = self.clock()
         done = i + 1 >= n
         if now - self.last < self.every_s and not done:
             return

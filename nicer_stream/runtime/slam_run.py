@@ -16,6 +16,7 @@ from nicer_stream.runtime.checkpoint import save_scene
 from nicer_stream.runtime.frame_priors import make_engine, provider_names
 from nicer_stream.runtime.pacer import Pacer
 from nicer_stream.runtime.prior_stage import PriorStage
+from nicer_stream.runtime.progress import Progress
 from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_trajectory
 from nicer_stream.runtime.scene_export import save_render, scene_mesh
 from nicer_stream.runtime.stage_timer import StageTimer
@@ -26,6 +27,9 @@ from nicer_stream.runtime.source_setup import intrinsics_dict, open_configured
 from sources.base import SourceOptions
 
 log = logging.getLogger(__name__)
+
+# Mapping calls report on stderr after their first iteration, then at most this often.
+MAPPING_PROGRESS_EVERY_S = 3.0
 
 
 @dataclass(frozen=True)
@@ -49,12 +53,14 @@ def run_slam(req: RunRequest) -> Path:
     cfg = config_mod.load(req.preset, req.config_file)
     torch.manual_seed(cfg.seed)
     timer = StageTimer()
+    print(f"opening {req.source} (preset {cfg.preset}, priors {req.priors}, device {req.device}); "
+          f"mapping progress on stderr", flush=True)
     source, _ = open_configured(req.source, req.source_opts, cfg)
     out = Path(req.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     engine = make_engine(req.priors, req.flow, req.device)
     stage = PriorStage(engine)
-    slam = SlamSystem(cfg, req.device)
+    slam = SlamSystem(cfg, req.device, progress=lambda label: Progress(label, MAPPING_PROGRESS_EVERY_S))
     from sinks import make_sink
 
     sink = make_sink(list(req.sinks)) if req.sinks else None
@@ -121,6 +127,7 @@ def run_slam(req: RunRequest) -> Path:
     if last is not None:  # the last frame is always rendered, as in `map`
         kept[last[0]] = last[1]
     times, poses = slam.trajectory()
+    print(f"writing outputs: {sum(v is not None for v in kept.values())} renders and the mesh", flush=True)
     save_scene(out, cfg, slam.model, slam.beta)
     with timer.stage("sinks"):
         write_trajectory(out, times, poses)

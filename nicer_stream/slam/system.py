@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 import random
+from typing import Callable
 
 import numpy as np
 import torch
@@ -32,6 +33,9 @@ from nicer_stream.types import Frame, Priors
 
 log = logging.getLogger(__name__)
 
+# (iteration, iterations, loss) after each mapping iteration (Mapper.optimise's `progress`).
+MappingProgress = Callable[[int, int, float], None]
+
 
 def first_scale_shift(mf: MapFrame, median_m: float) -> tuple[float, float]:
     """(w, q) of the first frame's depth prior (prior = w * depth + q): q from the normal
@@ -44,9 +48,14 @@ def first_scale_shift(mf: MapFrame, median_m: float) -> tuple[float, float]:
 
 
 class SlamSystem:
-    """Owns the scene, the optimisers, keyframes and the trajectory."""
+    """Owns the scene, the optimisers, keyframes and the trajectory.
 
-    def __init__(self, cfg: SlamConfig, device: str = "cpu") -> None:
+    `progress`, when given, is called with a label ("first mapping (frames 0,10)",
+    "mapping @ frame 15", "closing mapping @ frame 19") as each mapping call starts and
+    returns the callback that call reports its iterations to; the caller does the printing."""
+
+    def __init__(self, cfg: SlamConfig, device: str = "cpu",
+                 progress: Callable[[str], MappingProgress | None] | None = None) -> None:
         if cfg.loss.slam_prior_alignment not in ("lstsq", "map", "flow"):
             raise UserError(f"loss.slam_prior_alignment must be lstsq, map or flow, got {cfg.loss.slam_prior_alignment!r}")
         if cfg.tracking.init not in ("previous", "constant_velocity", "flow"):
@@ -54,6 +63,7 @@ class SlamSystem:
         if cfg.mapping.init not in ("first_frame", "two_view"):
             raise UserError(f"mapping.init must be first_frame or two_view, got {cfg.mapping.init!r}")
         self.cfg, self.device = cfg, torch.device(device)
+        self.progress = progress
         self.rng = random.Random(cfg.seed)
         self.model: SceneModel | None = None
         self.beta: BetaField | None = None
@@ -140,10 +150,10 @@ class SlamSystem:
         if self.model is None:
             return []
         if self.cfg.mapping.final_iters is not None:
-            return [self._map(self.order[-1], self.cfg.mapping.final_iters, bundle_adjust=False)]
+            return [self._map(self.order[-1], self.cfg.mapping.final_iters, bundle_adjust=False, closing=True)]
         if (len(self.order) - 1) % self.cfg.mapping.every == 0:
             return []
-        return [self._map(self.order[-1], self.cfg.mapping.iters)]
+        return [self._map(self.order[-1], self.cfg.mapping.iters, closing=True)]
 
     # -- stages ----------------------------------------------------------------------
     def _initialise(self, mf: MapFrame, second: MapFrame | None = None, view: TwoView | None = None) -> list[Event]:
@@ -172,9 +182,10 @@ class SlamSystem:
         self.frames[mf.index] = mf
         window = [mf] if second is None else [mf, second]
         # One long call from the sphere, like `map`: the colour grids join early.
+        label = f"first mapping (frame{'s' if second else ''} {','.join(str(f.index) for f in window)})"
         stats = self.mapper.optimise(window, self.poses, cfg.mapping.first_iters,
                                      fixed_scale_shift=None if view is not None else self.scale_rule,
-                                     color_start=cfg.mapping.batch_color_start)
+                                     progress=self._progress(label), color_start=cfg.mapping.batch_color_start)
         if cfg.loss.slam_prior_alignment == "map" and view is None:
             mf.depth_scale_shift = self.scale_rule
         return [
@@ -245,7 +256,10 @@ class SlamSystem:
         self.timestamps[frame.index] = frame.timestamp
         return FrameTracked(frame.index, frame.timestamp, T.double().cpu().numpy(), float("nan"), 0.0, reason)
 
-    def _map(self, current: int, iters: int, bundle_adjust: bool = True) -> MapUpdated:
+    def _progress(self, label: str) -> MappingProgress | None:
+        return self.progress(label) if self.progress is not None else None
+
+    def _map(self, current: int, iters: int, bundle_adjust: bool = True, closing: bool = False) -> MapUpdated:
         window = select_window(self.keyframes, current, self.cfg.mapping, self.rng)
         anchor = self.order[0]
         ba = ba_frames(window, current, anchor) if bundle_adjust and self.cfg.mapping.ba_start < 1.0 else set()
@@ -257,7 +271,9 @@ class SlamSystem:
                     f.depth_scale_shift = align_prior_to_map(f, self.poses[k], self.model, self.beta, self.cfg.render)
         elif mode == "flow":
             self._align_by_flow(window)
-        stats = self.mapper.optimise([self.frames[k] for k in window], self.poses, iters, ba_indices=ba)
+        label = f"{'closing mapping' if closing else 'mapping'} @ frame {current}"
+        stats = self.mapper.optimise([self.frames[k] for k in window], self.poses, iters, ba_indices=ba,
+                                     progress=self._progress(label))
         return MapUpdated(current, tuple(window), stats.loss, stats.iters, stats.seconds)
 
     def _align_by_flow(self, window: list[int]) -> None:

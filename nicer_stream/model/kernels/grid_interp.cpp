@@ -5,13 +5,16 @@
 // i0 = min(max(floor(u), 0), r - 2), corner k = 4 bx + 2 by + bz, dense row
 // (ix * r + iy) * r + iz, hashed row (ix ^ iy * 2654435761 ^ iz * 805459861) mod size.
 #include <torch/extension.h>
+#include <algorithm>
+#include <memory>
+#include <vector>
 #include <cmath>
 
 namespace {
 
 struct Level {
   int64_t res, offset, size;  // size: rows of the level (hash modulus when hashed)
-  bool hashed;
+  bool hashed, pow2;
 };
 
 template <typename scalar_t>
@@ -43,7 +46,7 @@ inline void make_cell(const scalar_t* x, const Level& lv, Cell<scalar_t>& c) {
     int64_t row;
     if (lv.hashed) {
       uint64_t h = (uint64_t)ix ^ ((uint64_t)iy * 2654435761ULL) ^ ((uint64_t)iz * 805459861ULL);
-      row = (int64_t)(h % (uint64_t)lv.size);
+      row = (int64_t)(lv.pow2 ? (h & (uint64_t)(lv.size - 1)) : (h % (uint64_t)lv.size));
     } else {
       row = (ix * lv.res + iy) * lv.res + iz;
     }
@@ -60,13 +63,6 @@ inline void make_cell(const scalar_t* x, const Level& lv, Cell<scalar_t>& c) {
   }
 }
 
-// Outside the dispatch macro: a pragma cannot sit inside a macro's arguments.
-template <typename scalar_t>
-inline void atomic_add(scalar_t* p, scalar_t v) {
-#pragma omp atomic
-  *p += v;
-}
-
 std::vector<Level> levels_of(const torch::Tensor& res, const torch::Tensor& offsets,
                              const torch::Tensor& sizes, const torch::Tensor& hashed) {
   auto r = res.accessor<int64_t, 1>();
@@ -74,7 +70,7 @@ std::vector<Level> levels_of(const torch::Tensor& res, const torch::Tensor& offs
   auto s = sizes.accessor<int64_t, 1>();
   auto h = hashed.accessor<bool, 1>();
   std::vector<Level> lv(r.size(0));
-  for (int64_t l = 0; l < r.size(0); ++l) lv[l] = {r[l], o[l], s[l], h[l]};
+  for (int64_t l = 0; l < r.size(0); ++l) lv[l] = {r[l], o[l], s[l], h[l], (s[l] & (s[l] - 1)) == 0};
   return lv;
 }
 
@@ -121,7 +117,8 @@ std::vector<torch::Tensor> grid_forward(torch::Tensor table, torch::Tensor x, to
 
 // Gradients of grid_forward given g_out (N, L*C) and g_jac (N, 3, L*C) or empty.
 // Adds the table's gradient into table_grad (R, C) when it is defined; returns g_x (N, 3)
-// (zeros unless need_x).
+// (zeros unless need_x). Deterministic for a given thread count, and without atomics: every
+// table row is updated by one thread, in point order.
 torch::Tensor grid_backward(torch::Tensor table, torch::Tensor x, torch::Tensor res, torch::Tensor offsets,
                             torch::Tensor sizes, torch::Tensor hashed, torch::Tensor g_out, torch::Tensor g_jac,
                             torch::Tensor table_grad, bool need_x) {
@@ -136,6 +133,58 @@ torch::Tensor grid_backward(torch::Tensor table, torch::Tensor x, torch::Tensor 
     const scalar_t* GJ = has_jac ? g_jac.data_ptr<scalar_t>() : nullptr;
     scalar_t* TG = need_table ? table_grad.data_ptr<scalar_t>() : nullptr;
     scalar_t* GX = g_x.data_ptr<scalar_t>();
+    if (TG) {
+      // Pass 1 (parallel over points): each (level, point, corner)'s row and gradient, level-major.
+      // Pass 2 adds them in point order: one thread per level when there are enough levels (a
+      // level's rows then stay in that core's cache), else thread t takes the rows with
+      // row mod T == t (T a power of two).
+      const int64_t M = N * L * 8;
+      std::unique_ptr<int64_t[]> rows(new int64_t[M]);  // uninitialised: every entry is written
+      std::unique_ptr<scalar_t[]> contrib(new scalar_t[M * C]);
+      at::parallel_for(0, N, 256, [&](int64_t begin, int64_t end) {
+        Cell<scalar_t> c;
+        for (int64_t n = begin; n < end; ++n) {
+          for (int64_t l = 0; l < L; ++l) {
+            make_cell(X + 3 * n, lv[l], c);
+            const scalar_t* go = GO + n * L * C + l * C;
+            const int64_t base = (l * N + n) * 8;
+            for (int k = 0; k < 8; ++k) {
+              rows[base + k] = c.rows[k];
+              scalar_t* v = contrib.get() + (base + k) * C;
+              for (int64_t ch = 0; ch < C; ++ch) {
+                v[ch] = c.w[k] * go[ch];
+                if (GJ) {
+                  const scalar_t* gj = GJ + n * 3 * L * C + l * C + ch;
+                  v[ch] += c.scale * (c.dw[0][k] * gj[0] + c.dw[1][k] * gj[L * C] + c.dw[2][k] * gj[2 * L * C]);
+                }
+              }
+            }
+          }
+        }
+      });
+      auto add_range = [&](int64_t from, int64_t to, int64_t mask, int64_t owner) {
+        for (int64_t m = from; m < to; ++m) {
+          const int64_t row = rows[m];
+          if ((row & mask) != owner) continue;
+          scalar_t* tg = TG + row * C;
+          const scalar_t* v = contrib.get() + m * C;
+          for (int64_t ch = 0; ch < C; ++ch) tg[ch] += v[ch];
+        }
+      };
+      const int64_t threads = std::max<int64_t>(1, std::min<int64_t>(at::get_num_threads(), N / 1024 + 1));
+      if (L >= threads) {
+        at::parallel_for(0, L, 1, [&](int64_t first, int64_t last) {
+          for (int64_t l = first; l < last; ++l) add_range(l * N * 8, (l + 1) * N * 8, 0, 0);
+        });
+      } else {
+        int64_t n_owner = 1;
+        while (n_owner * 2 <= threads) n_owner *= 2;
+        at::parallel_for(0, n_owner, 1, [&](int64_t first, int64_t last) {
+          for (int64_t owner = first; owner < last; ++owner) add_range(0, M, n_owner - 1, owner);
+        });
+      }
+    }
+    if (!need_x) return;
     at::parallel_for(0, N, 256, [&](int64_t begin, int64_t end) {
       Cell<scalar_t> c;
       for (int64_t n = begin; n < end; ++n) {
@@ -148,38 +197,28 @@ torch::Tensor grid_backward(torch::Tensor table, torch::Tensor x, torch::Tensor 
           scalar_t gf[3] = {0, 0, 0};
           for (int k = 0; k < 8; ++k) {
             const scalar_t* t = T + c.rows[k] * C;
-            if (TG) {
-              scalar_t* tg = TG + c.rows[k] * C;
-              for (int64_t ch = 0; ch < C; ++ch) {
-                scalar_t v = c.w[k] * go[ch];
-                if (GJ) v += c.scale * (c.dw[0][k] * gj[0][ch] + c.dw[1][k] * gj[1][ch] + c.dw[2][k] * gj[2][ch]);
-                atomic_add(tg + ch, v);
-              }
-            }
-            if (need_x) {
-              scalar_t dot_go = 0;
-              for (int64_t ch = 0; ch < C; ++ch) dot_go += t[ch] * go[ch];
-              for (int b = 0; b < 3; ++b) gf[b] += c.dw[b][k] * dot_go;
-              if (GJ) {
-                // jac_a = scale * sum_k dw_a,k t_k; d dw_a,k / d frac_b (b != a) = s_a s_b f_other.
-                int64_t bits[3] = {(k >> 2) & 1, (k >> 1) & 1, k & 1};
-                for (int a = 0; a < 3; ++a) {
-                  scalar_t dot_gj = 0;
-                  for (int64_t ch = 0; ch < C; ++ch) dot_gj += t[ch] * gj[a][ch];
-                  for (int b = 0; b < 3; ++b) {
-                    if (b == a) continue;
-                    int o = 3 - a - b;
-                    scalar_t sa = bits[a] ? 1 : -1, sb = bits[b] ? 1 : -1;
-                    scalar_t fo = bits[o] ? c.frac[o] : 1 - c.frac[o];
-                    gf[b] += c.scale * sa * sb * fo * dot_gj;
-                  }
+            scalar_t dot_go = 0;
+            for (int64_t ch = 0; ch < C; ++ch) dot_go += t[ch] * go[ch];
+            for (int b = 0; b < 3; ++b) gf[b] += c.dw[b][k] * dot_go;
+            if (GJ) {
+              // jac_a = scale * sum_k dw_a,k t_k; d dw_a,k / d frac_b (b != a) = s_a s_b f_other.
+              int64_t bits[3] = {(k >> 2) & 1, (k >> 1) & 1, k & 1};
+              for (int a = 0; a < 3; ++a) {
+                scalar_t dot_gj = 0;
+                for (int64_t ch = 0; ch < C; ++ch) dot_gj += t[ch] * gj[a][ch];
+                for (int b = 0; b < 3; ++b) {
+                  if (b == a) continue;
+                  int o = 3 - a - b;
+                  scalar_t sa = bits[a] ? 1 : -1, sb = bits[b] ? 1 : -1;
+                  scalar_t fo = bits[o] ? c.frac[o] : 1 - c.frac[o];
+                  gf[b] += c.scale * sa * sb * fo * dot_gj;
                 }
               }
             }
           }
-          if (need_x) for (int b = 0; b < 3; ++b) gf_total[b] += c.inside[b] ? gf[b] * c.scale : 0;
+          for (int b = 0; b < 3; ++b) gf_total[b] += c.inside[b] ? gf[b] * c.scale : 0;
         }
-        if (need_x) for (int b = 0; b < 3; ++b) GX[3 * n + b] = gf_total[b];
+        for (int b = 0; b < 3; ++b) GX[3 * n + b] = gf_total[b];
       }
     });
   });

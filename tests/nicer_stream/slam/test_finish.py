@@ -1,4 +1,4 @@
-"""SlamSystem.finish(): the closing mapping call of the schedule."""
+"""SlamSystem.finish(): the closing mapping call of the schedule; every mapping call's progress callback."""
 from dataclasses import replace
 
 from nicer_stream.config import load
@@ -8,8 +8,8 @@ from sources import open_source
 from sources.base import SourceOptions
 
 
-def _run(cfg):
-    slam = SlamSystem(cfg)
+def _run(cfg, progress=None):
+    slam = SlamSystem(cfg, progress=progress)
     events = []
     for f in open_source("synthetic:room?frames=5", SourceOptions(max_side=32)):
         events += slam.step(f.without_ground_truth())
@@ -24,3 +24,19 @@ def test_final_iters_adds_a_closing_call_even_after_a_scheduled_one(tiny_config)
     _, closing = _run(replace(cfg, mapping=replace(cfg.mapping, final_iters=6)))
     assert len(closing) == 1 and isinstance(closing[0], MapUpdated)
     assert closing[0].index == 4 and closing[0].iters == 6 and 4 in closing[0].window
+
+
+def test_every_mapping_call_reports_progress_under_its_label(tiny_config):
+    cfg = load("fast", tiny_config)  # no priors: first-frame start; mapped at frames 2 and 4, then the closing call
+    calls: dict[str, list[tuple[int, int]]] = {}
+
+    def progress(label):
+        calls[label] = []
+        return lambda it, iters, loss: calls[label].append((it, iters))
+
+    events, closing = _run(cfg, progress)
+    maps = [e for e in events + closing if isinstance(e, MapUpdated)]
+    assert list(calls) == ["first mapping (frame 0)", "mapping @ frame 2", "mapping @ frame 4",
+                           "closing mapping @ frame 4"]
+    for (label, got), e in zip(calls.items(), maps):  # one call per iteration, from the first one on
+        assert got == [(i, e.iters) for i in range(e.iters)], label
