@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import torch
 
+from nicer_stream.numerics import exp_neg
+
 
 def render_weights(sigma: torch.Tensor, deltas: torch.Tensor) -> torch.Tensor:
     """(R, S) densities and interval lengths -> (R, S) weights T_i * alpha_i.
@@ -11,9 +13,9 @@ def render_weights(sigma: torch.Tensor, deltas: torch.Tensor) -> torch.Tensor:
     cheaper on CPU than that of cumprod(1 - alpha).
     """
     tau = sigma * deltas
-    alpha = 1 - torch.exp(-tau)
+    alpha = 1 - exp_neg(tau)
     acc = torch.cumsum(tau, dim=-1)
-    trans = torch.exp(-torch.cat([torch.zeros_like(acc[:, :1]), acc[:, :-1]], dim=-1))
+    trans = exp_neg(torch.cat([torch.zeros_like(acc[:, :1]), acc[:, :-1]], dim=-1))
     return trans * alpha
 
 
