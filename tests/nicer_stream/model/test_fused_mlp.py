@@ -54,3 +54,9 @@ def test_only_some_outputs_used_and_frozen_weights():
     mlp.reference_forward(h, t)[1].sum().backward()
     assert torch.allclose(ref_h, h.grad) and torch.allclose(ref_t, t.grad)
     assert all(p.grad is None for p in mlp.parameters())
+
+
+def test_softplus_in_place_branch_equals_autograd_branch():
+    z = torch.linspace(-1, 1, 301, dtype=torch.float64)
+    ref = softplus_beta(z.clone().requires_grad_()).detach()
+    assert torch.equal(softplus_beta(z.clone()), ref)
