@@ -50,8 +50,11 @@ def _composite_deltas(t: torch.Tensor, far: torch.Tensor) -> torch.Tensor:
 
 
 def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderConfig,
-                use_fine: bool = True, jitter: bool = True) -> RenderOutput:
-    """Differentiable rendering of `rays` (w.r.t. scene parameters and ray origins/dirs)."""
+                use_fine: bool = True, jitter: bool = True, depth_only: bool = False) -> RenderOutput:
+    """Differentiable rendering of `rays` (w.r.t. scene parameters and ray origins/dirs).
+
+    `depth_only` (without autograd only): depth, ray distance and opacity as usual, while rgb
+    and normal are left zero (no SDF gradients, no colour network: ~40% less work)."""
     b = model.bound
     o = b.normalise(rays.origins)
     d = rays.dirs
@@ -86,13 +89,14 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
         # samples that can matter (a few per ray).
         sdf = model.geometry(x, use_fine=use_fine).sdf
         w = render_weights(laplace_density(sdf.reshape(r, s), bx), _composite_deltas(t, far))
+        normal, rgb_s = x.new_zeros(x.shape[0], 3), x.new_zeros(x.shape[0], 3)
+        sdf_grad = x.new_zeros(0, 3)
         keep = (w.reshape(-1) > 1e-4).nonzero()[:, 0]
-        geo = model.geometry(x[keep], use_fine=use_fine, with_grad=True)
-        normal = x.new_zeros(x.shape[0], 3)
-        normal[keep] = geo.grad / geo.grad.norm(dim=-1, keepdim=True).clamp_min(1e-6)
-        rgb_s = x.new_zeros(x.shape[0], 3)
-        rgb_s[keep] = model.color(x[keep], normal[keep], view[keep], geo.z_coarse, geo.z_fine)
-        sdf_grad = geo.grad
+        if not depth_only and len(keep):
+            geo = model.geometry(x[keep], use_fine=use_fine, with_grad=True)
+            normal[keep] = geo.grad / geo.grad.norm(dim=-1, keepdim=True).clamp_min(1e-6)
+            rgb_s[keep] = model.color(x[keep], normal[keep], view[keep], geo.z_coarse, geo.z_fine)
+            sdf_grad = geo.grad
     ray_dist = accumulate(w, t) * b.half_extent
     return RenderOutput(
         rgb=accumulate(w, rgb_s.reshape(r, s, 3)),
@@ -123,14 +127,15 @@ class RenderedImage:
 
 @torch.no_grad()
 def render_image(model: SceneModel, beta: BetaField, T_world_cam: torch.Tensor, intr: Intrinsics,
-                 cfg: RenderConfig, use_fine: bool = True) -> RenderedImage:
-    """Render a full view without autograd, in chunks (gradients are never needed here)."""
+                 cfg: RenderConfig, use_fine: bool = True, depth_only: bool = False) -> RenderedImage:
+    """Render a full view without autograd, in chunks (gradients are never needed here);
+    `depth_only` leaves rgb and normal zero (see `render_rays`)."""
     dev = T_world_cam.device
     uv = pixel_grid(intr, device=dev)
     outs = []
     for i in range(0, uv.shape[0], cfg.chunk_rays):
         rays = rays_for_pixels(uv[i:i + cfg.chunk_rays], intr, T_world_cam)
-        out = render_rays(model, beta, rays, cfg, use_fine=use_fine, jitter=False)
+        out = render_rays(model, beta, rays, cfg, use_fine=use_fine, jitter=False, depth_only=depth_only)
         outs.append(torch.cat([out.rgb, out.depth[:, None], out.normal, out.opacity[:, None]], -1).detach())
     img = torch.cat(outs).reshape(intr.height, intr.width, 8)
     R = T_world_cam[:3, :3]

@@ -45,7 +45,8 @@ def depth_views(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Int
     idx = np.unique(np.linspace(0, len(poses) - 1, min(max_views, len(poses))).round().astype(int))
     out = []
     for i in idx:
-        view = render_image(model, beta, torch.as_tensor(poses[i], dtype=torch.float32), small, cfg.render)
+        view = render_image(model, beta, torch.as_tensor(poses[i], dtype=torch.float32), small, cfg.render,
+                            depth_only=True)
         out.append(DepthView(np.asarray(poses[i]), small, np.where(view.opacity > 0.5, view.depth, 0.0)))
     return out
 

@@ -60,7 +60,7 @@ def flow_points(src: MapFrame, T_world_src: torch.Tensor, dst_index: int, model,
     w = src.intr.width
     uv = torch.stack([ids % w, ids // w], -1).to(torch.float32)
     rays = rays_for_pixels(uv, src.intr, T_world_src)
-    out = render_rays(model, beta, rays, render, jitter=False)
+    out = render_rays(model, beta, rays, render, jitter=False, depth_only=True)
     keep = (out.opacity > min_opacity) & (out.depth > 0)
     X = rays.origins + rays.dirs * out.ray_dist[:, None]
     uv_dst = uv + flow.reshape(-1, 2)[ids]

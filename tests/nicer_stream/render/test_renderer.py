@@ -182,3 +182,12 @@ def test_overfit_sphere_depth():
     assert e0.mean() > 0.2  # the initial sphere is far from the target
     assert e.mean() < 0.01, f"mean held depth error {e.mean():.4f} of the radius"
     assert e.median() < 0.01 and torch.quantile(e, 0.9) < 0.02 and e.max() < 0.04
+
+
+def test_depth_only_render_keeps_depth_and_opacity():
+    model, beta = _model(), BetaField(RC)
+    T = _pose_at_centre()
+    full = render_image(model, beta, T, INTR, RC)
+    depth = render_image(model, beta, T, INTR, RC, depth_only=True)
+    assert np.array_equal(full.depth, depth.depth) and np.array_equal(full.opacity, depth.opacity)
+    assert (depth.rgb == 0).all() and (depth.normal == 0).all() and (full.rgb > 0).any()
