@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The measurements named in the issues (long: run one at a time on a 2-core CPU).
-# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|run-none|run-synth|run10|run10-paper|flow|speedup] [OUTROOT]
+# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|run-none|run-synth|run10|run10-paper|flow|speedup|iters] [OUTROOT]
 # speedup: the Replica `run` of commit BASE (default c64946b; a git worktree in OUTROOT/base_worktree)
 #   and of this tree (uncommitted edits included) back to back, then scripts/speedup_table.py
 #   (~15 min). EXTRA="..." appends arguments to both runs (e.g. EXTRA="--max-frames 3").
@@ -47,6 +47,11 @@ case "${1:-all}" in
   run10)     t $NS run --source $REPLICA --priors oracle --preset fast --max-frames 10 --out $OUT/run10_fast ;;
   run10-paper) t $NS run --source $REPLICA --priors oracle --preset paper --max-frames 10 --max-side 320 --render-every 100 --out $OUT/run10_paper ;;
   run-synth) t $NS run --source "synthetic:room?frames=100" --priors oracle --preset fast --out $OUT/run_synth ;;
+  iters)     # per-iteration costs (mapping, tracking) with FLOPs and sgemm: BASE's code at fast sizes
+             # (needs the worktree of `speedup`), then this tree at fast and paper sizes
+             wt=$(realpath "$OUT")/base_worktree
+             [ -e "$wt/.git" ] && PYTHONPATH=$wt .venv/bin/python scripts/iter_bench.py --presets fast --iters 10
+             .venv/bin/python scripts/iter_bench.py --presets fast,paper --iters 10 --profile ;;
   speedup)   BASE=${BASE:-c64946b}
              base=$(git rev-parse --verify "$BASE^{commit}")
              mkdir -p "$OUT" && out=$(realpath "$OUT") && wt=$out/base_worktree
@@ -60,5 +65,5 @@ case "${1:-all}" in
              speedup_run "$PWD" "$out/speedup_new"
              .venv/bin/python scripts/speedup_table.py "$out/speedup_base" "$out/speedup_new" \
                --labels "$(git rev-parse --short "$base")" "$new" ;;
-  *) echo "usage: [BASE=commit] [EXTRA=args] $0 map|map-none|map-paper|map-synth|run|run-seeds|run-none|run10|run10-paper|run-synth|flow|speedup [OUTROOT]"; exit 2 ;;
+  *) echo "usage: [BASE=commit] [EXTRA=args] $0 map|map-none|map-paper|map-synth|run|run-seeds|run-none|run10|run10-paper|run-synth|flow|speedup|iters [OUTROOT]"; exit 2 ;;
 esac
