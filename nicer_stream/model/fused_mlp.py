@@ -42,7 +42,6 @@ class FusedTangentMLP(torch.autograd.Function):
     @staticmethod
     def forward(ctx, h: torch.Tensor, tangent: torch.Tensor, n: int, *params: torch.Tensor):
         weights, biases = params[0::2], params[1::2]
-        n_pts = h.shape[0]
         x = torch.cat([h[:, None], tangent], 1)  # (N, 4, in): value row, then the 3 tangent rows
         saved = []
         for i, (w, b) in enumerate(zip(weights, biases)):

@@ -17,6 +17,14 @@ from __future__ import annotations
 import torch
 
 
+def gradient_target(table: torch.Tensor) -> tuple[torch.Tensor, bool]:
+    """Where a backward adds `table`'s gradient: its persistent `.grad` buffer when it is a
+    leaf that has one (in place: hand autograd None), else a fresh zero tensor (hand it back)."""
+    if table.is_leaf and table.grad is not None:
+        return table.grad, True
+    return torch.zeros_like(table), False
+
+
 class _GatherRows(torch.autograd.Function):
     @staticmethod
     def forward(ctx, table: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:
@@ -28,13 +36,9 @@ class _GatherRows(torch.autograd.Function):
     def backward(ctx, grad_out: torch.Tensor):
         (idx,) = ctx.saved_tensors
         c = grad_out.shape[-1]
-        table = ctx.table
-        if table.is_leaf and table.grad is not None:
-            table.grad.index_add_(0, idx.reshape(-1), grad_out.reshape(-1, c))
-            return None, None
-        grad = torch.zeros(table.shape[0], c, dtype=grad_out.dtype, device=grad_out.device)
+        grad, in_place = gradient_target(ctx.table)
         grad.index_add_(0, idx.reshape(-1), grad_out.reshape(-1, c))
-        return grad, None
+        return (None if in_place else grad), None
 
 
 def gather_rows(table: torch.Tensor, idx: torch.Tensor) -> torch.Tensor:

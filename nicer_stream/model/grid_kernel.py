@@ -1,6 +1,6 @@
 """The compiled CPU kernel for multi-level grid interpolation (`kernels/grid_interp.cpp`).
 
-Built on first use with torch's C++ extension loader (g++ and ninja; ~1 minute once, then
+Built on first use with torch's C++ extension loader (g++ and ninja; ~25 s once, then
 cached under ~/.cache/torch_extensions). Where it cannot be built, on a GPU, or with
 NICER_STREAM_KERNELS=0, the grids use their pure-torch reference paths (same values and
 gradients; tests compare both).
@@ -12,6 +12,8 @@ import os
 from pathlib import Path
 
 import torch
+
+from nicer_stream.model.gather import gradient_target
 
 log = logging.getLogger(__name__)
 _SOURCE = Path(__file__).parent / "kernels" / "grid_interp.cpp"
@@ -67,7 +69,8 @@ class GridInterp(torch.autograd.Function):
         out, jac = _load().grid_forward(table.detach(), x.detach(), *spec.args(), with_jac)
         ctx.save_for_backward(x)
         ctx.table, ctx.spec = table, spec
-        ctx.mark_non_differentiable(jac) if not with_jac else None
+        if not with_jac:
+            ctx.mark_non_differentiable(jac)
         return out, jac
 
     @staticmethod
@@ -75,18 +78,13 @@ class GridInterp(torch.autograd.Function):
         (x,) = ctx.saved_tensors
         table = ctx.table
         need_table, need_x = ctx.needs_input_grad[0], ctx.needs_input_grad[1]
-        g_out = torch.zeros(0) if g_out is None else g_out
-        in_place = need_table and table.is_leaf and table.grad is not None
-        grad_table = None
-        if need_table:
-            grad_table = table.grad if in_place else torch.zeros_like(table)
-        if g_out.numel() == 0:
-            n = x.shape[0]
-            g_out = torch.zeros(n, ctx.spec.res.numel() * table.shape[1], dtype=table.dtype)
-        g_jac = torch.zeros(0, dtype=table.dtype) if g_jac is None else g_jac.contiguous()
-        g_x = _load().grid_backward(table.detach(), x, *ctx.spec.args(), g_out.contiguous(), g_jac,
-                                    grad_table if grad_table is not None else torch.zeros(0, dtype=table.dtype), need_x)
-        return (None if in_place else grad_table), (g_x if need_x else None), None, None
+        empty = table.new_zeros(0)  # the kernel's "absent" for g_jac and the table gradient
+        if g_out is None:
+            g_out = table.new_zeros(x.shape[0], ctx.spec.res.numel() * table.shape[1])
+        g_jac = empty if g_jac is None else g_jac.contiguous()
+        grad_table, in_place = gradient_target(table) if need_table else (empty, False)
+        g_x = _load().grid_backward(table.detach(), x, *ctx.spec.args(), g_out.contiguous(), g_jac, grad_table, need_x)
+        return (grad_table if need_table and not in_place else None), (g_x if need_x else None), None, None
 
 
 def grid_interp(table: torch.Tensor, x: torch.Tensor, spec: GridSpec, with_jac: bool):

@@ -29,7 +29,7 @@ class HashGrids(nn.Module):
         self.register_buffer("level_offset", torch.arange(levels) * self.size, persistent=False)
         self.table = nn.Parameter((torch.rand(levels * self.size, dim) * 2 - 1) * init_std)
         self.spec = GridSpec(self.resolutions, [l * self.size for l in range(levels)], [self.size] * levels,
-                             [r**3 > self.size for r in self.resolutions])
+                             (~self.dense).tolist())
 
     @property
     def out_dim(self) -> int:
