@@ -13,12 +13,16 @@ from nicer_stream.types import Frame, Intrinsics
 
 @dataclass(frozen=True)
 class SourceOptions:
-    """Options shared by all sources (CLI: --start, --stride, --max-frames, --max-side, --scale, --intrinsics)."""
+    """Options shared by all sources (CLI: --start, --stride, --drop, --max-frames, --max-side, --scale, --intrinsics)."""
 
     start: int = 0
     """Skip this many input frames first."""
     stride: int = 1
     """Keep every `stride`-th frame after `start`."""
+    drop: tuple[int, int] | None = None
+    """Drop raw input frames `a`..`b-1` (`(a, b)`, counted like `start`, before stride), to simulate a jump.
+    The stride pattern and the frames' GT are unchanged (frames are numbered as with --stride alone);
+    `max_frames` counts the frames kept after dropping."""
     max_frames: int | None = None
     """Stop after this many kept frames (None: all)."""
     max_side: int | None = None
@@ -33,16 +37,21 @@ class SourceOptions:
             raise SourceError("--stride must be >= 1 and --start >= 0")
         if self.max_frames is not None and self.max_frames < 1:
             raise SourceError("--max-frames must be >= 1")
+        if self.drop is not None and not 0 <= self.drop[0] < self.drop[1]:
+            a, b = self.drop
+            raise SourceError(f"--drop {a}:{b} is empty or negative: give A:B with 0 <= A < B (drops input frames A..B-1)")
         if self.max_side is not None and self.scale is not None:
             raise SourceError("give either --max-side or --scale, not both")
 
     def keeps(self, raw_index: int) -> bool:
-        """Whether input frame number `raw_index` (0-based) passes start/stride."""
+        """Whether input frame number `raw_index` (0-based) passes start/stride/drop."""
+        if self.drop is not None and self.drop[0] <= raw_index < self.drop[1]:
+            return False
         return raw_index >= self.start and (raw_index - self.start) % self.stride == 0
 
     def selected(self, n: int) -> list[int]:
         """Indices of the kept frames out of `n` input frames."""
-        idx = list(range(self.start, n, self.stride))
+        idx = [i for i in range(self.start, n, self.stride) if self.keeps(i)]
         return idx if self.max_frames is None else idx[: self.max_frames]
 
     def target_size(self, width: int, height: int) -> tuple[int, int]:

@@ -22,14 +22,16 @@ def register(app: typer.Typer) -> None:
         stride: int = typer.Option(1, "--stride", help="Keep every N-th frame (as in the run)."),
         start: int = typer.Option(0, "--start", help="Skip this many frames first (as in the run)."),
         max_frames: int = typer.Option(None, "--max-frames", help="Stop after this many frames (as in the run)."),
+        drop: str = typer.Option(None, "--drop", help="A:B drops input frames A..B-1 (as in the run)."),
     ) -> None:
         """Recompute eval.json for an output directory against a source's ground truth and print a table."""
         from pathlib import Path
 
-        from nicer_stream.cli.common import user_errors
+        from nicer_stream.cli.common import parse_drop, user_errors
         from nicer_stream.cli.eval_cmd import eval_command
 
-        user_errors(eval_command)(Path(outdir), source, max_side, stride, start, max_frames)
+        drop_range = user_errors(parse_drop)(drop)
+        user_errors(eval_command)(Path(outdir), source, max_side, stride, start, max_frames, drop_range)
 
     from nicer_stream.cli.priors_cmd import priors
 

@@ -39,6 +39,20 @@ def parse_intrinsics(text: str | None) -> tuple[float, float, float, float] | No
     return vals  # type: ignore[return-value]
 
 
+DROP_HELP = "A:B drops input frames A..B-1 (raw numbers, as --start counts), to simulate a jump."
+
+
+def parse_drop(text: str | None) -> tuple[int, int] | None:
+    """'A:B' -> (A, B), or None; the range itself is checked by SourceOptions."""
+    if not text:
+        return None
+    a, _, b = text.partition(":")
+    try:
+        return int(a), int(b)
+    except ValueError:
+        raise UserError(f"--drop must be 'A:B' (two integers, drops input frames A..B-1), got '{text}'") from None
+
+
 def not_built(command: str, issue: int) -> None:
     """Exit non-zero for a command that a later issue brings."""
     typer.echo(f"'nicer-stream {command}' is not built yet (issue #{issue} brings it)", err=True)

@@ -55,6 +55,7 @@ def eval_command(
     stride: int = 1,
     start: int = 0,
     max_frames: int | None = None,
+    drop: tuple[int, int] | None = None,
 ) -> od.EvalReport:
     """Evaluate `outdir` against source URI `source` (default: summary.json's `source`), write eval.json, print a table."""
     # Heavy imports (torch, trimesh, sources) only once the command runs.
@@ -68,7 +69,7 @@ def eval_command(
         source = od.read_summary(outdir).source if (outdir / od.SUMMARY_FILE).is_file() else None
         if source is None:
             raise UserError("no --source given and summary.json names none: pass --source URI (e.g. replica:PATH)")
-    opts = SourceOptions(start=start, stride=stride, max_frames=max_frames, max_side=max_side)
+    opts = SourceOptions(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side)
     src = open_source(source, opts)
     report = evaluate_output_dir(outdir, src)
     path = od.write_eval(outdir, report)

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import typer
 
-from nicer_stream.cli.common import parse_intrinsics, user_errors
+from nicer_stream.cli.common import DROP_HELP, parse_drop, parse_intrinsics, user_errors
 
 
 def map_command(
@@ -22,22 +22,23 @@ def map_command(
     max_side: int = typer.Option(None, "--max-side", help="Resize so the longer side is at most N pixels (default: preset)."),
     stride: int = typer.Option(1, "--stride"),
     start: int = typer.Option(0, "--start"),
+    drop: str = typer.Option(None, "--drop", help=DROP_HELP),
     max_frames: int = typer.Option(None, "--max-frames"),
     intrinsics: str = typer.Option(None, "--intrinsics", help="fx,fy,cx,cy at the original image size."),
     render_every: int = typer.Option(None, "--render-every", help="Render and evaluate every N-th frame (default: at most 20 views, spread evenly)."),
 ) -> None:
     """Fit the neural scene to frames with known poses; writes trajectory, mesh, renders, summary (and eval.json with GT)."""
     user_errors(_run)(source, out, poses, priors, flow, preset, config, iters, minutes, device, max_side, stride, start,
-                      max_frames, intrinsics, render_every)
+                      drop, max_frames, intrinsics, render_every)
 
 
-def _run(source, out, poses, priors, flow, preset, config, iters, minutes, device, max_side, stride, start, max_frames,
+def _run(source, out, poses, priors, flow, preset, config, iters, minutes, device, max_side, stride, start, drop, max_frames,
          intrinsics, render_every) -> None:
     from nicer_stream.cli.run_report import evaluate_and_print
     from nicer_stream.runtime.map_known_poses import MapRequest, run_map
     from sources.base import SourceOptions
 
-    opts = SourceOptions(start=start, stride=stride, max_frames=max_frames, max_side=max_side,
+    opts = SourceOptions(start=start, stride=stride, drop=parse_drop(drop), max_frames=max_frames, max_side=max_side,
                          intrinsics=parse_intrinsics(intrinsics))
     out_dir = run_map(MapRequest(source=source, out_dir=out, poses=poses, priors=priors, flow=flow, preset=preset,
                                  config_file=config, iters=iters, minutes=minutes, device=device, render_every=render_every,

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from nicer_stream.cli.common import user_errors
+from nicer_stream.cli.common import DROP_HELP, parse_drop, user_errors
 
 
 @user_errors
@@ -22,6 +22,7 @@ def priors(
     max_side: int | None = typer.Option(None, "--max-side", help="Resize so the longer side is at most N px"),
     stride: int = typer.Option(1, "--stride", help="Keep every N-th frame"),
     start: int = typer.Option(0, "--start", help="Skip this many input frames"),
+    drop: str | None = typer.Option(None, "--drop", help=DROP_HELP),
     max_frames: int | None = typer.Option(None, "--max-frames", help="Stop after N kept frames"),
     device: str = typer.Option("cpu", "--device", help="Torch device for network providers"),
 ) -> None:
@@ -36,7 +37,7 @@ def priors(
         raise UserError("--flow-gap must be >= 0 (0: no flow)")
     if provider.startswith("cache:") or flow.startswith("cache:"):
         raise UserError("nicer-stream priors writes a cache; give a computing provider, not cache:DIR")
-    opts = SourceOptions(start=start, stride=stride, max_frames=max_frames, max_side=max_side)
+    opts = SourceOptions(start=start, stride=stride, drop=parse_drop(drop), max_frames=max_frames, max_side=max_side)
     src = open_source(source, opts)
     dn_provider = make_depth_normal_provider(provider, device=device)
     flow_provider = make_flow_provider(flow, device=device)

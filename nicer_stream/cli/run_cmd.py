@@ -5,7 +5,7 @@ from pathlib import Path
 
 import typer
 
-from nicer_stream.cli.common import parse_intrinsics, user_errors
+from nicer_stream.cli.common import DROP_HELP, parse_drop, parse_intrinsics, user_errors
 
 
 def run_command(
@@ -19,6 +19,7 @@ def run_command(
     max_frames: int = typer.Option(None, "--max-frames"),
     stride: int = typer.Option(1, "--stride"),
     start: int = typer.Option(0, "--start"),
+    drop: str = typer.Option(None, "--drop", help=DROP_HELP),
     max_side: int = typer.Option(None, "--max-side", help="Resize so the longer side is at most N pixels (default: preset)."),
     intrinsics: str = typer.Option(None, "--intrinsics", help="fx,fy,cx,cy at the original image size."),
     realtime: bool = typer.Option(False, "--realtime", help="Play the log at its recorded rate, dropping frames SLAM cannot keep up with."),
@@ -26,7 +27,7 @@ def run_command(
     render_every: int = typer.Option(10, "--render-every", help="Render (and evaluate) every N-th frame at the end; their images are kept until then."),
 ) -> None:
     """Track every frame and map keyframes; writes trajectory.tum, mesh.ply, summary.json (+ eval.json with GT)."""
-    user_errors(_run)(source, out, preset, config, priors, flow, sink, max_frames, stride, start, max_side, intrinsics,
+    user_errors(_run)(source, out, preset, config, priors, flow, sink, max_frames, stride, start, drop, max_side, intrinsics,
                       realtime, device, render_every)
 
 
@@ -44,13 +45,13 @@ def _resolve_sinks(sinks: list[str], out: Path) -> tuple[str, ...]:
     return tuple(res)
 
 
-def _run(source, out, preset, config, priors, flow, sinks, max_frames, stride, start, max_side, intrinsics, realtime,
+def _run(source, out, preset, config, priors, flow, sinks, max_frames, stride, start, drop, max_side, intrinsics, realtime,
          device, render_every) -> None:
     from nicer_stream.cli.run_report import evaluate_and_print
     from nicer_stream.runtime.slam_run import RunRequest, run_slam
     from sources.base import SourceOptions
 
-    opts = SourceOptions(start=start, stride=stride, max_frames=max_frames, max_side=max_side,
+    opts = SourceOptions(start=start, stride=stride, drop=parse_drop(drop), max_frames=max_frames, max_side=max_side,
                          intrinsics=parse_intrinsics(intrinsics))
     out_dir = run_slam(RunRequest(source=source, out_dir=out, priors=priors, flow=flow, preset=preset, config_file=config,
                                   sinks=_resolve_sinks(sinks, out), device=device, realtime=realtime,

@@ -1,25 +1,54 @@
-"""Procedural synthetic scenes as a frame source: `synthetic:NAME[?frames=N&seed=S&width=W&height=H]`.
+"""Procedural synthetic scenes as a frame source: `synthetic:NAME[?frames=N&seed=S&width=W&height=H&grey=1]`.
 
 Frames are ray-cast lazily, one per iteration step, with exact GT pose
-(`T_world_cam`, OpenCV axes, world z up) and GT z-depth. Defaults: scene `room`,
-120 frames at 30 fps, 320x240, 70 degree horizontal field of view.
+(`T_world_cam`, OpenCV axes, world z up) and GT z-depth (0 where a ray sees the sky).
+Scenes: `room`, `tabletop` (room.py) and `street` (street.py). Defaults: scene `room`,
+120 frames at 30 fps, 320x240, 70 degree horizontal field of view, colour
+(`grey=1`: luminance in all three channels).
 """
 from __future__ import annotations
 
 import math
 from typing import Iterator
 
+import numpy as np
+
 from nicer_stream.errors import SourceError
 from nicer_stream.types import Frame, Intrinsics
 from sources.base import FrameSource, SourceOptions, intrinsics_from_override
 from sources.synthetic.render import RenderedView
-from sources.synthetic.room import SCENES, SyntheticScene, make_scene
+from sources.synthetic.room import room_scene, tabletop_scene
+from sources.synthetic.scene import SyntheticScene
+from sources.synthetic.street import street_scene
 
-__all__ = ["FPS", "SCENES", "RenderedView", "SyntheticScene", "SyntheticSource", "default_intrinsics", "make_scene", "open"]
+__all__ = ["FPS", "SCENES", "RenderedView", "SyntheticScene", "SyntheticSource", "default_intrinsics", "make_scene", "open", "to_grey"]
 
 FPS = 30.0
 HFOV_DEG = 70.0
-_LIMITS = {"frames": (1, 100_000, 120), "seed": (0, 2**31 - 1, 0), "width": (8, 8192, 320), "height": (8, 8192, 240)}
+_LIMITS = {
+    "frames": (1, 100_000, 120),
+    "seed": (0, 2**31 - 1, 0),
+    "width": (8, 8192, 320),
+    "height": (8, 8192, 240),
+    "grey": (0, 1, 0),
+}
+_BUILDERS = {"room": room_scene, "tabletop": tabletop_scene, "street": street_scene}
+SCENES = tuple(_BUILDERS)
+LUMA = np.array([0.299, 0.587, 0.114], dtype=np.float32)
+"""RGB weights of the luminance of `grey=1` frames (ITU-R BT.601, as OpenCV's RGB2GRAY)."""
+
+
+def make_scene(name: str = "room", seed: int = 0) -> SyntheticScene:
+    """Build scene `name` (one of SCENES) deterministically from `seed`."""
+    if name not in _BUILDERS:
+        raise SourceError(f"unknown synthetic scene '{name}': use one of {', '.join(SCENES)} (synthetic:room)")
+    return _BUILDERS[name](np.random.default_rng([seed, SCENES.index(name)]), seed)
+
+
+def to_grey(rgb: np.ndarray) -> np.ndarray:
+    """(H, W, 3) RGB -> (H, W, 3) float32 with the luminance in every channel."""
+    y = rgb[..., 0] * LUMA[0] + rgb[..., 1] * LUMA[1] + rgb[..., 2] * LUMA[2]
+    return np.repeat(y[..., None], 3, axis=-1).astype(np.float32)
 
 
 def default_intrinsics(width: int, height: int, hfov_deg: float = HFOV_DEG) -> Intrinsics:
@@ -29,17 +58,20 @@ def default_intrinsics(width: int, height: int, hfov_deg: float = HFOV_DEG) -> I
 
 
 class SyntheticSource(FrameSource):
-    """Renders `n_frames` views of `scene` along its trajectory (only the frames the options keep)."""
+    """Renders `n_frames` views of `scene` along its trajectory (only the frames the options keep), grey if `grey`."""
 
     has_gt_pose = True
 
-    def __init__(self, scene: SyntheticScene, n_frames: int, intr: Intrinsics, opts: SourceOptions | None = None) -> None:
+    def __init__(
+        self, scene: SyntheticScene, n_frames: int, intr: Intrinsics, opts: SourceOptions | None = None, grey: bool = False
+    ) -> None:
         super().__init__(opts)
         self.scene = scene
         self.n_frames = n_frames
         self.intrinsics = intr
+        self.grey = grey
         self.poses = scene.trajectory(n_frames)
-        self.name = f"synthetic-{scene.name}-s{scene.seed}"
+        self.name = f"synthetic-{scene.name}-s{scene.seed}" + ("-grey" if grey else "")
 
     def gt_mesh(self):
         """The scene's ground-truth mesh (trimesh, world metres), for evaluation only."""
@@ -54,7 +86,7 @@ class SyntheticSource(FrameSource):
             yield Frame(
                 index=i,
                 timestamp=i / FPS,
-                rgb=view.rgb,
+                rgb=to_grey(view.rgb) if self.grey else view.rgb,
                 intrinsics=self.intrinsics,
                 gt_pose=self.poses[i].copy(),
                 gt_depth=view.depth,
@@ -77,11 +109,11 @@ def _int_param(query: dict[str, str], key: str) -> int:
 
 
 def open(path: str, query: dict[str, str], opts: SourceOptions) -> SyntheticSource:  # noqa: A001 - registry protocol
-    """Open `synthetic:NAME?frames=&seed=&width=&height=` (empty NAME = room)."""
+    """Open `synthetic:NAME?frames=&seed=&width=&height=&grey=` (empty NAME = room)."""
     unknown = sorted(set(query) - set(_LIMITS))
     if unknown:
         raise SourceError(f"synthetic source: unknown parameter(s) {', '.join(unknown)}: use {', '.join(_LIMITS)}")
-    n, seed, w, h = (_int_param(query, k) for k in ("frames", "seed", "width", "height"))
+    n, seed, w, h, grey = (_int_param(query, k) for k in _LIMITS)
     scene = make_scene(path or "room", seed)
     intr = intrinsics_from_override(opts, w, h) or default_intrinsics(w, h)
-    return SyntheticSource(scene, n, intr, opts)
+    return SyntheticSource(scene, n, intr, opts, grey=bool(grey))

@@ -7,6 +7,7 @@ by all rays, or (3, N)) and unit directions `d` (3, N). A `Hit` holds the ray
 distance `t` (N,) (`inf` = miss) and the unit outward normal (3, N) at the hit
 (for the inside-out room box: the normal pointing into the room).
 Oriented primitives have a local frame: `R` (3, 3, local-to-world) and `centre` (3,).
+Every primitive has `extent`: (3,) half sizes of a world axis-aligned box around it, about `centre`.
 """
 from __future__ import annotations
 
@@ -62,6 +63,10 @@ class Box:
     def bounding_radius(self) -> float:
         return np.inf if self.inside else float(np.linalg.norm(self.half))
 
+    @property
+    def extent(self) -> np.ndarray:
+        return np.abs(self.R) @ self.half
+
     def intersect(self, o: np.ndarray, d: np.ndarray) -> Hit:
         ol, dl = _to_local(o, d, self.centre, self.R)
         t_near = t_far = None
@@ -101,6 +106,10 @@ class Sphere:
     def bounding_radius(self) -> float:
         return float(self.radius)
 
+    @property
+    def extent(self) -> np.ndarray:
+        return np.full(3, float(self.radius))
+
     def intersect(self, o: np.ndarray, d: np.ndarray) -> Hit:
         oc = (np.reshape(o, (3, -1)) - self.centre[:, None]).astype(d.dtype)
         b = (oc * d).sum(0)
@@ -128,6 +137,10 @@ class Cylinder:
     @property
     def bounding_radius(self) -> float:
         return float(np.hypot(self.radius, self.half_height))
+
+    @property
+    def extent(self) -> np.ndarray:
+        return np.abs(self.R) @ np.array([self.radius, self.radius, self.half_height])
 
     def intersect(self, o: np.ndarray, d: np.ndarray) -> Hit:
         ol, dl = _to_local(o, d, self.centre, self.R)

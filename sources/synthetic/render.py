@@ -3,6 +3,7 @@
 Colour of a surface point = solid texture(point) * (ambient + (1 - ambient) * max(0, n . light)),
 with a fixed light direction in the world: it depends on the point and its
 normal only, never on the viewer, so all views agree on every point's colour.
+Rays that hit nothing get depth 0 (invalid) and the scene's sky colour (black without one).
 """
 from __future__ import annotations
 
@@ -12,10 +13,17 @@ import numpy as np
 
 from nicer_stream.types import Intrinsics
 from sources.synthetic.primitives import Primitive, linear
-from sources.synthetic.texture import RoomTexture, SolidTexture
+from sources.synthetic.texture import RoomTexture, SkyGradient, SolidTexture
 
 AMBIENT = 0.6
 """Fraction of the texture colour that unlit (back-facing) surfaces keep."""
+
+
+def random_light(rng: np.random.Generator) -> np.ndarray:
+    """(3,) unit direction towards a light 37 degrees off the zenith, at a random azimuth."""
+    az = rng.uniform(0, 2 * np.pi)
+    v = np.array([0.6 * np.cos(az), 0.6 * np.sin(az), 0.8])
+    return v / np.linalg.norm(v)
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,7 +38,7 @@ class Surface:
 @dataclass(frozen=True)
 class RenderedView:
     """rgb: (H, W, 3) float32 in [0, 1]; depth: (H, W) float32 z-depth in metres (0 = no hit);
-    normal: (H, W, 3) float32 unit normals in the camera frame (OpenCV axes), facing the camera."""
+    normal: (H, W, 3) float32 unit normals in the camera frame (OpenCV axes), facing the camera (0 where no hit)."""
 
     rgb: np.ndarray
     depth: np.ndarray
@@ -85,18 +93,19 @@ def cast(surfaces: list[Surface], o: np.ndarray, d: np.ndarray) -> tuple[np.ndar
 def shade(surfaces: list[Surface], idx: np.ndarray, p: np.ndarray, n: np.ndarray, light: np.ndarray) -> np.ndarray:
     """(3, N) float32 colour of world points `p` (3, N) with world normals `n` (3, N) on surface `idx` (N,)."""
     rgb = np.zeros(p.shape, dtype=np.float32)
-    for k, s in enumerate(surfaces):
+    for k in np.unique(idx[idx >= 0]):
         m = idx == k
-        if m.any():
-            rgb[:, m] = s.texture(p[:, m])
+        rgb[:, m] = surfaces[k].texture(p[:, m])
     lambert = AMBIENT + (1.0 - AMBIENT) * np.clip(linear(light, n.astype(np.float32)), 0.0, 1.0)
     return rgb * lambert
 
 
-def render_view(surfaces: list[Surface], light: np.ndarray, T_world_cam: np.ndarray, intr: Intrinsics) -> RenderedView:
+def render_view(
+    surfaces: list[Surface], light: np.ndarray, T_world_cam: np.ndarray, intr: Intrinsics, sky: SkyGradient | None = None
+) -> RenderedView:
     """Ray-cast `surfaces` seen by a camera at `T_world_cam` (4, 4) with intrinsics `intr`.
 
-    `light`: (3,) unit world direction towards the light.
+    `light`: (3,) unit world direction towards the light; `sky`: colour of rays that hit nothing.
     """
     T = np.asarray(T_world_cam, dtype=np.float64)
     o, d, d_cam = camera_rays(T, intr)
@@ -107,6 +116,8 @@ def render_view(surfaces: list[Surface], light: np.ndarray, T_world_cam: np.ndar
     # Shade with the surface's own normal (view-independent), then make output normals
     # face the viewer (n . d < 0), which only flips rare grazing-angle sign slips.
     rgb = shade(surfaces, idx, p, n, light)
+    if sky is not None and not hit.all():
+        rgb[:, ~hit] = sky(d[:, ~hit])
     n = np.where((n * d).sum(0) > 0, -n, n)
     n_cam = linear(T[:3, :3].T, n)
     H, W = intr.height, intr.width

@@ -2,74 +2,20 @@
 
 World frame: z up, metres, floor at z = 0. Poses are `T_world_cam` with OpenCV
 camera axes. Scenes: `room` (~4 x 3 x 2.6 m, objects on the floor) and
-`tabletop` (3 x 3 x 2.4 m, objects on a table, camera closer).
+`tabletop` (3 x 3 x 2.4 m, objects on a table, camera closer). The camera orbits
+the objects; `trajectory(N)` samples the same arc for any N (more frames: smaller steps).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
-import trimesh
 
-from nicer_stream.errors import SourceError
-from nicer_stream.types import Intrinsics
-from sources.synthetic.mesh import scene_mesh
 from sources.synthetic.primitives import Box, Cylinder, Sphere, rot_z
-from sources.synthetic.render import RenderedView, Surface, render_view
+from sources.synthetic.render import Surface, random_light
+from sources.synthetic.scene import SyntheticScene
 from sources.synthetic.texture import RoomTexture, random_colour, random_texture
 from sources.synthetic.trajectory import OrbitParams, orbit_trajectory
-
-SCENES = ("room", "tabletop")
-
-
-@dataclass(eq=False)
-class SyntheticScene:
-    """A room (inside-out box, `surfaces[0]`) plus objects, a fixed light and a camera orbit."""
-
-    name: str
-    seed: int
-    surfaces: list[Surface]
-    light: np.ndarray
-    """(3,) unit world direction towards the light (fixed: shading is view-independent)."""
-    orbit: OrbitParams
-
-    @property
-    def room(self) -> Box:
-        return self.surfaces[0].shape
-
-    @property
-    def objects(self) -> list[Surface]:
-        """The surfaces inside the room (everything but the room itself)."""
-        return self.surfaces[1:]
-
-    def render(self, T_world_cam: np.ndarray, intr: Intrinsics) -> RenderedView:
-        """Exact ray-cast view: rgb (H, W, 3), z-depth (H, W) metres, camera-frame normals (H, W, 3)."""
-        return render_view(self.surfaces, self.light, T_world_cam, intr)
-
-    def gt_mesh(self, max_edge: float = 0.05) -> trimesh.Trimesh:
-        """Ground-truth mesh (world frame, metres) with uint8 RGBA vertex colours."""
-        return scene_mesh(self.surfaces, self.light, max_edge)
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """(3,) min and (3,) max world corner of the room (everything lies inside)."""
-        return self.room.centre - self.room.half, self.room.centre + self.room.half
-
-    def trajectory(self, n_frames: int) -> np.ndarray:
-        """(N, 4, 4) float64 T_world_cam along the scene's camera path (same path for any N)."""
-        return orbit_trajectory(self.orbit, n_frames)
-
-    def clearance(self, points: np.ndarray) -> np.ndarray:
-        """(N,) distance in metres from world points (N, 3) to the nearest object or wall."""
-        p = np.asarray(points, dtype=np.float64).T
-        return np.min([s.shape.sdf(p) for s in self.surfaces], axis=0)
-
-
-def make_scene(name: str = "room", seed: int = 0) -> SyntheticScene:
-    """Build scene `name` (one of SCENES) deterministically from `seed`."""
-    builders = {"room": _room_scene, "tabletop": _tabletop_scene}
-    if name not in builders:
-        raise SourceError(f"unknown synthetic scene '{name}': use one of {', '.join(SCENES)} (synthetic:room)")
-    return builders[name](np.random.default_rng([seed, SCENES.index(name)]), seed)
 
 
 def _room_surface(rng: np.random.Generator, half: np.ndarray, feature: float) -> Surface:
@@ -123,12 +69,6 @@ def _objects(rng, z0: float, lo, hi, size: float, feature: float) -> list[Surfac
     ]
 
 
-def _light(rng: np.random.Generator) -> np.ndarray:
-    az = rng.uniform(0, 2 * np.pi)
-    v = np.array([0.6 * np.cos(az), 0.6 * np.sin(az), 0.8])
-    return v / np.linalg.norm(v)
-
-
 def _orbit(rng, radii, height: float, target: np.ndarray, target_amp: np.ndarray) -> OrbitParams:
     return OrbitParams(
         centre=rng.uniform(-0.05, 0.05, 2),
@@ -143,17 +83,17 @@ def _orbit(rng, radii, height: float, target: np.ndarray, target_amp: np.ndarray
     )
 
 
-def _room_scene(rng: np.random.Generator, seed: int) -> SyntheticScene:
+def room_scene(rng: np.random.Generator, seed: int) -> SyntheticScene:
     room = _room_surface(rng, np.array([2.0, 1.5, 1.3]), 0.06)
     objs = _objects(rng, 0.0, np.array([-0.95, -0.6]), np.array([0.95, 0.6]), 1.0, 0.04)
     orbit = _orbit(rng, (1.5, 1.05), 1.45, np.array([0.0, 0.0, 0.45]), np.array([0.3, 0.2, 0.1]))
-    return SyntheticScene("room", seed, [room, *objs], _light(rng), orbit)
+    return SyntheticScene("room", seed, [room, *objs], random_light(rng), partial(orbit_trajectory, orbit))
 
 
-def _tabletop_scene(rng: np.random.Generator, seed: int) -> SyntheticScene:
+def tabletop_scene(rng: np.random.Generator, seed: int) -> SyntheticScene:
     room = _room_surface(rng, np.array([1.5, 1.5, 1.2]), 0.05)
     table_half = np.array([0.55, 0.4, 0.36])
     table = Surface(Box(np.array([0.0, 0.0, 0.36]), table_half, np.eye(3)), random_texture(rng, random_colour(rng), 0.03), "table")
     objs = _objects(rng, 2 * table_half[2], np.array([-0.33, -0.2]), np.array([0.33, 0.2]), 0.4, 0.02)
     orbit = _orbit(rng, (0.85, 0.7), 1.15, np.array([0.0, 0.0, 0.82]), np.array([0.12, 0.08, 0.05]))
-    return SyntheticScene("tabletop", seed, [room, table, *objs], _light(rng), orbit)
+    return SyntheticScene("tabletop", seed, [room, table, *objs], random_light(rng), partial(orbit_trajectory, orbit))

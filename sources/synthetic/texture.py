@@ -128,3 +128,19 @@ class RoomTexture:
             if m.any():
                 out[:, m] = tex(p[:, m])
         return out
+
+
+@dataclass(frozen=True, eq=False)
+class SkyGradient:
+    """Colour of rays that hit nothing, from their world direction alone (infinitely far, world z up).
+
+    `horizon` (3,) RGB at and below the horizon, blending to `zenith` (3,) RGB straight up.
+    """
+
+    horizon: np.ndarray
+    zenith: np.ndarray
+
+    def __call__(self, d: np.ndarray) -> np.ndarray:
+        """(3, N) unit world directions -> (3, N) float32 RGB in [0, 1]."""
+        s = np.sqrt(np.clip(d[2], 0.0, 1.0))
+        return ((1.0 - s) * self.horizon[:, None] + s * self.zenith[:, None]).astype(np.float32)

@@ -1,22 +1,77 @@
-"""SourceOptions selection/resize arithmetic, URI parsing and the scheme registry."""
+"""SourceOptions selection/resize arithmetic (incl. --drop), URI parsing and the scheme registry."""
 from __future__ import annotations
 
 import re
 
+import numpy as np
 import pytest
+from typer.testing import CliRunner
 
-from nicer_stream.errors import SourceError
+from nicer_stream.cli.common import parse_drop
+from nicer_stream.cli.main import app
+from nicer_stream.errors import SourceError, UserError
 from sources import SCHEMES, open_source, parse_uri
 from sources.base import SourceOptions
+from sources.synthetic import make_scene
 
 
-@pytest.mark.parametrize("start,stride,max_frames,n", [(0, 1, None, 7), (2, 3, None, 20), (5, 2, 3, 20), (9, 1, 4, 5)])
-def test_selected_agrees_with_keeps(start, stride, max_frames, n):
-    opts = SourceOptions(start=start, stride=stride, max_frames=max_frames)
+@pytest.mark.parametrize(
+    "start,stride,max_frames,n,drop",
+    [(0, 1, None, 7, None), (2, 3, None, 20, None), (5, 2, 3, 20, None), (9, 1, 4, 5, None),
+     (2, 3, 4, 30, (4, 12)), (0, 1, None, 9, (0, 3))],
+)
+def test_selected_agrees_with_keeps(start, stride, max_frames, n, drop):
+    opts = SourceOptions(start=start, stride=stride, max_frames=max_frames, drop=drop)
     sel = opts.selected(n)
     kept = [i for i in range(n) if opts.keeps(i)]
     assert sel == kept[: max_frames or n]
     assert all(0 <= i < n for i in sel) and sel == sorted(set(sel))
+
+
+def test_drop_removes_raw_frames_before_max_frames_counts():
+    # stride keeps 1, 3, 5, 7, 9, 11, ...; the drop removes raw 4..8; then max_frames takes 4.
+    opts = SourceOptions(start=1, stride=2, drop=(4, 9), max_frames=4)
+    assert opts.selected(20) == [1, 3, 9, 11]
+    assert not opts.keeps(5) and not opts.keeps(7) and opts.keeps(9)
+    assert SourceOptions(drop=(2, 4)).selected(6) == [0, 1, 4, 5]
+    assert SourceOptions(drop=(0, 100)).selected(6) == []
+    assert SourceOptions(drop=(10, 20)).selected(6) == list(range(6))  # beyond the input: nothing to drop
+
+
+@pytest.mark.parametrize("drop", [(5, 5), (6, 2), (-1, 3)])
+def test_bad_drop_raises_one_line_saying_what_to_give(drop):
+    with pytest.raises(SourceError) as e:
+        SourceOptions(drop=drop)
+    msg = str(e.value)
+    assert "\n" not in msg and f"--drop {drop[0]}:{drop[1]}" in msg and "A:B" in msg and "0 <= A < B" in msg
+
+
+def test_parse_drop_flag():
+    assert parse_drop("3:7") == (3, 7) and parse_drop(None) is None and parse_drop("") is None
+    for bad in ("3", "3-7", "a:b", "3:7:9"):
+        with pytest.raises(UserError, match="--drop must be 'A:B'"):
+            parse_drop(bad)
+
+
+def test_synthetic_source_honours_drop_and_keeps_raw_indices():
+    opts = SourceOptions(stride=2, drop=(3, 8), max_frames=3, max_side=16)
+    src = open_source("synthetic:room?frames=14&width=32&height=24", opts)
+    frames = list(src)
+    assert [f.index for f in frames] == [0, 2, 8] and len(src) == 3
+    poses = make_scene("room", 0).trajectory(14)
+    for f in frames:
+        np.testing.assert_array_equal(f.gt_pose, poses[f.index])  # GT still matches the raw frame
+
+
+@pytest.mark.parametrize("command", ["run", "map", "eval", "priors"])
+def test_every_command_with_stride_accepts_drop(command):
+    res = CliRunner().invoke(app, [command, "--help"], terminal_width=200)
+    assert res.exit_code == 0 and "--stride" in res.output and "--drop" in res.output
+
+
+def test_eval_rejects_a_bad_drop_in_one_line(tmp_path):
+    res = CliRunner().invoke(app, ["eval", str(tmp_path), "--source", "synthetic:room?frames=4", "--drop", "5:2"])
+    assert res.exit_code == 2 and "--drop 5:2" in res.output and len(res.output.strip().splitlines()) == 1
 
 
 def test_target_size():
