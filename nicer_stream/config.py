@@ -197,12 +197,66 @@ class TrackingConfig:
     """Only pixels whose rendered surface point lies in a beta voxel with more than this
     many mapping samples count in the loss (0: all): unmapped space renders the initial
     sphere, whose colours pull the pose. None of the pixels qualifying: all are used."""
+    frontend: str = "none"
+    """'classical': a KLT + PnP + local-BA frontend (`frontend` settings) seeds each frame's
+    pose and checks the photometric result; 'none': the paper's tracking alone."""
+    optimizer: str = "adam"
+    """'adam' on the L1 loss (the paper) or 'gauss_newton' (Levenberg-Marquardt with Huber
+    weights: a few iterations, each a forward and three backward passes; `iters` is its maximum)."""
+    residual: str = "rgb"
+    """'gauss_newton': 'rgb' (three residuals per pixel, three backward passes) or 'grey'
+    (the channels' mean: one backward pass)."""
+    huber_delta: float = 0.05
+    """'gauss_newton': colour residuals beyond this get Huber's down-weighting."""
+    damping: float = 1e-3
+    """'gauss_newton': Levenberg-Marquardt damping on the normal equations' diagonal."""
+    max_step_m: float = 0.05
+    """'gauss_newton': a step translating more than this (metres) is shortened to it."""
+    max_step_rad: float = 0.05
+    """'gauss_newton': a step rotating more than this (radians) is shortened to it."""
+    stop_m: float = 2e-4
+    """'gauss_newton': stop once a step translates less than this (metres) ..."""
+    stop_rad: float = 2e-4
+    """... and rotates less than this (radians)."""
+    average: int = 1
+    """'gauss_newton': the pose is the mean of the last this many iterates (1: the last)."""
     n_probe: int | None = None
     """Probe samples per ray while tracking (None: as in mapping)."""
     n_importance: int | None = None
     """Importance samples per ray while tracking (None: as in mapping)."""
     n_uniform: int | None = None
     """Stratified samples per ray while tracking (None: as in mapping)."""
+
+
+@dataclass(frozen=True)
+class FrontendConfig:
+    """The classical frontend (`tracking.frontend = 'classical'`, `nicer_stream/frontend/`)."""
+
+    corners: int = 400
+    """Features kept alive (Shi-Tomasi corners tracked by pyramidal Lucas-Kanade)."""
+    min_distance_px: float = 8.0
+    """Minimum spacing of corners, pixels."""
+    fb_px: float = 1.0
+    """A track survives a frame when tracking back lands within this many pixels."""
+    window: int = 40
+    """Frames whose observations are kept (landmarks no frame in it sees are dropped)."""
+    min_parallax_deg: float = 1.0
+    """Triangulate a track once its two views' rays are this far apart."""
+    reproj_px: float = 2.0
+    """Inlier threshold of PnP, triangulation and the BA's Huber loss, pixels."""
+    min_inliers: int = 30
+    """A PnP pose needs this many agreeing landmarks."""
+    ba_keyframes: int = 6
+    """Keyframes in the local bundle adjustment."""
+    ba_fixed: int = 2
+    """Its oldest this many keyframes stay fixed (gauge and scale come from the map)."""
+    max_disagreement_m: float = 0.05
+    """Photometric and frontend poses further apart than this (or than `max_disagreement_frac`
+    of the frame's motion, whichever is larger) are a tracking loss: the frontend's is kept."""
+    max_disagreement_frac: float = 0.3
+    """See `max_disagreement_m`."""
+    max_disagreement_deg: float = 2.0
+    """Rotation bound of the same check, degrees."""
 
 
 @dataclass(frozen=True)
@@ -253,6 +307,8 @@ class SlamConfig:
     """Tracking."""
     bound: BoundConfig = field(default_factory=BoundConfig)
     """Scene bound."""
+    frontend: FrontendConfig = field(default_factory=FrontendConfig)
+    """Classical frontend settings (used when `tracking.frontend = 'classical'`)."""
     mesh: MeshConfig = field(default_factory=MeshConfig)
     """Mesh extraction."""
     seed: int = 0

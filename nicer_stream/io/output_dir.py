@@ -37,6 +37,9 @@ class StageSeconds:
     """Wall-clock seconds spent per stage."""
 
     tracking: float = 0.0
+    """Tracking, including the frontend's share below."""
+    frontend: float = 0.0
+    """The classical frontend (KLT, PnP, triangulation, local BA): part of `tracking`."""
     mapping: float = 0.0
     priors: float = 0.0
     sinks: float = 0.0

@@ -126,6 +126,7 @@ def run_slam(req: RunRequest) -> Path:
         raise UserError(f"source {req.source} gave no frames")
     if last is not None:  # the last frame is always rendered, as in `map`
         kept[last[0]] = last[1]
+    timer.seconds.frontend = slam.frontend_seconds
     times, poses = slam.trajectory()
     print(f"writing outputs: {sum(v is not None for v in kept.values())} renders and the mesh", flush=True)
     save_scene(out, cfg, slam.model, slam.beta)

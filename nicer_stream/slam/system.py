@@ -8,12 +8,15 @@ from __future__ import annotations
 
 import logging
 import random
+import time
+from contextlib import contextmanager
 from typing import Callable
 
 import numpy as np
 import torch
 
 from nicer_stream.config import SlamConfig
+from nicer_stream.frontend.frontend import ClassicalFrontend, FrontendPose
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.depth_shift import shift_from_normals
 from nicer_stream.mapping.mapper import Mapper
@@ -23,7 +26,7 @@ from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.runtime.bound_estimate import bound_from_config, bound_from_depth
 from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpdated
-from nicer_stream.slam.motion import predict_pose, tracking_failure
+from nicer_stream.slam.motion import frontend_disagreement, predict_pose, tracking_failure
 from nicer_stream.slam.two_view import TwoView, two_view_init
 from nicer_stream.slam.window import ba_frames, select_window
 from nicer_stream.tracking.flow_init import pose_from_flows
@@ -62,6 +65,8 @@ class SlamSystem:
             raise UserError(f"tracking.init must be previous, constant_velocity or flow, got {cfg.tracking.init!r}")
         if cfg.mapping.init not in ("first_frame", "two_view"):
             raise UserError(f"mapping.init must be first_frame or two_view, got {cfg.mapping.init!r}")
+        if cfg.tracking.frontend not in ("classical", "none"):
+            raise UserError(f"tracking.frontend must be classical or none, got {cfg.tracking.frontend!r}")
         self.cfg, self.device = cfg, torch.device(device)
         self.progress = progress
         self.rng = random.Random(cfg.seed)
@@ -81,6 +86,8 @@ class SlamSystem:
         self.pending: list[MapFrame | None] = []  # held for the two-view start (None: corrupt)
         self.pending_raw: list[Frame] = []
         self.init_note = ""
+        self.frontend = ClassicalFrontend(cfg.frontend) if cfg.tracking.frontend == "classical" else None
+        self.frontend_seconds = 0.0
 
     # -- per frame -------------------------------------------------------------------
     def step(self, frame: Frame, priors: Priors | None = None) -> list[Event]:
@@ -90,6 +97,9 @@ class SlamSystem:
         if frame.gt_pose is not None or frame.gt_depth is not None:
             raise UserError("SlamSystem.step got a frame with ground truth: pass frame.without_ground_truth()")
         mf = MapFrame.from_frame(frame, priors, self.device) if np.isfinite(frame.rgb).all() else None
+        if self.frontend is not None and mf is not None:
+            with self._frontend_timer():
+                self.frontend.observe(frame.index, frame.rgb, frame.intrinsics)
         if priors is not None and mf is not None:  # flows from stored (and held) frames to this one
             for kf in list(self.frames.values()) + [p for p in self.pending if p is not None]:
                 kf.add_flows(priors)
@@ -133,10 +143,13 @@ class SlamSystem:
         self.timestamps[i] = frame.timestamp
         self._store(mf)
         is_kf = len(self.order) % self.cfg.mapping.keyframe_every == 1 or self.cfg.mapping.keyframe_every == 1
-        if is_kf and i not in self.keyframes:
+        # A frame whose pose is not trusted never becomes a keyframe nor starts a mapping call.
+        trusted = i not in self.lost_frames
+        self._frontend_pose(i, self.poses[i], trusted, is_kf)
+        if is_kf and trusted and i not in self.keyframes:
             self.keyframes.append(i)
             events.append(KeyframeAdded(i))
-        if len(self.order) > 1 and (len(self.order) - 1) % self.cfg.mapping.every == 0:
+        if trusted and len(self.order) > 1 and (len(self.order) - 1) % self.cfg.mapping.every == 0:
             events.append(self._map(i, self.cfg.mapping.iters))
         return events
 
@@ -175,6 +188,8 @@ class SlamSystem:
             self.bound = bound_from_depth(depth_m, mf.intr, T0.cpu().numpy().astype(np.float64), cfg.bound)
         else:
             self.bound = bound_from_config(cfg.bound)
+        for f in [mf] + ([second] if second is not None else []):
+            self._frontend_pose(f.index, self.poses[f.index], True, True)
         self.model = SceneModel(cfg.model, self.bound).to(self.device)
         self.beta = BetaField(cfg.render).to(self.device)
         self.mapper = Mapper(self.model, self.beta, cfg, cfg.seed)
@@ -219,18 +234,47 @@ class SlamSystem:
         history = [self.poses[i] for i in self.order[-2:]]
         init = self.cfg.tracking.init
         T_pred = predict_pose(history, init)
-        if init == "flow":
+        front = self._frontend_estimate(mf.index, T_pred)
+        if front is not None:  # the frontend's PnP pose seeds the photometric tracker
+            T_pred = torch.as_tensor(front.T_world_cam, dtype=T_pred.dtype, device=T_pred.device)
+        elif init == "flow":
             T_pred = self._flow_init(mf, T_pred)
         res = self.tracker.track(mf, T_pred)
         reason = tracking_failure(res.T_world_cam, T_pred, res.loss, self.recent_losses, self.cfg.tracking)
+        if reason is None and front is not None:
+            reason = frontend_disagreement(res.T_world_cam, T_pred, history[-1], self.cfg.frontend)
+        if reason is None and front is None and self.frontend is not None and len(self.keyframes) > 2:
+            log.info("frame %d: the frontend has no pose (too few tracked landmarks)", mf.index)
+        # On a detection the frontend's pose (else the motion model's) is kept.
         T = T_pred if reason else res.T_world_cam
         if reason:
             self.lost_frames.append(mf.index)
-            log.warning("frame %d: tracking lost (%s): using the motion model", mf.index, reason)
+            log.warning("frame %d: tracking lost (%s): using the %s pose", mf.index, reason,
+                        "frontend's" if front is not None else "motion model's")
         else:
             self.recent_losses = (self.recent_losses + [res.loss])[-10:]
         self.poses[mf.index] = T.detach()
         return FrameTracked(mf.index, mf.timestamp, T.detach().double().cpu().numpy(), res.loss, res.seconds, reason)
+
+    # -- the classical frontend (no-ops without one) ------------------------------------
+    @contextmanager
+    def _frontend_timer(self):
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.frontend_seconds += time.perf_counter() - t0
+
+    def _frontend_estimate(self, index: int, T_guess: torch.Tensor) -> FrontendPose | None:
+        if self.frontend is None:
+            return None
+        with self._frontend_timer():
+            return self.frontend.estimate(index, T_guess.double().cpu().numpy())
+
+    def _frontend_pose(self, index: int, T: torch.Tensor, trusted: bool, keyframe: bool) -> None:
+        if self.frontend is not None:
+            with self._frontend_timer():
+                self.frontend.set_pose(index, T.double().cpu().numpy(), trusted, keyframe)
 
     def _flow_init(self, mf: MapFrame, T_prev: torch.Tensor) -> torch.Tensor:
         """PnP pose from the stored frames' flows to `mf` (else `T_prev`)."""
@@ -274,6 +318,8 @@ class SlamSystem:
         label = f"{'closing mapping' if closing else 'mapping'} @ frame {current}"
         stats = self.mapper.optimise([self.frames[k] for k in window], self.poses, iters, ba_indices=ba,
                                      progress=self._progress(label))
+        if self.frontend is not None and ba:
+            self.frontend.update_poses({k: self.poses[k].double().cpu().numpy() for k in ba})
         return MapUpdated(current, tuple(window), stats.loss, stats.iters, stats.seconds)
 
     def _align_by_flow(self, window: list[int]) -> None:

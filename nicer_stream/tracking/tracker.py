@@ -1,5 +1,9 @@
 """Camera tracking (Sec. 3.3): optimise one frame's pose against the frozen scene
-with the RGB L1 loss on pixels redrawn every iteration; keep the best (or last) pose."""
+with the RGB loss on pixels redrawn every iteration; keep the best (or last) pose.
+
+Two optimisers: 'adam' on the L1 loss (the paper), and 'gauss_newton' (Levenberg-Marquardt
+with Huber weights, `tracking/gauss_newton.py`), which takes a handful of iterations and
+stops when the step is below `stop_m` / `stop_rad`."""
 from __future__ import annotations
 
 import math
@@ -10,13 +14,14 @@ import torch
 
 from nicer_stream.config import RenderConfig, TrackingConfig
 from nicer_stream.errors import UserError
-from nicer_stream.geometry.se3 import se3_exp
+from nicer_stream.geometry.se3 import invert, se3_exp, se3_log
 from nicer_stream.losses import rgb_l1
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.ray_sampling import sample_pixels
+from nicer_stream.tracking.gauss_newton import damped_step, ray_twist_jacobian, robust_weights
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
-from nicer_stream.render.renderer import render_rays, rays_for_pixels
+from nicer_stream.render.renderer import RayBatch, render_rays, rays_for_pixels
 
 
 @dataclass
@@ -38,6 +43,10 @@ class Tracker:
     def __init__(self, model: SceneModel, beta: BetaField, cfg: TrackingConfig, render: RenderConfig, seed: int = 0) -> None:
         if cfg.keep not in ("best", "last"):
             raise UserError(f"tracking.keep must be 'best' or 'last', got {cfg.keep!r}")
+        if cfg.optimizer not in ("adam", "gauss_newton"):
+            raise UserError(f"tracking.optimizer must be 'adam' or 'gauss_newton', got {cfg.optimizer!r}")
+        if cfg.residual not in ("rgb", "grey"):
+            raise UserError(f"tracking.residual must be 'rgb' or 'grey', got {cfg.residual!r}")
         self.model, self.beta, self.cfg = model, beta, cfg
         # Tracking may use fewer samples: the surface is already known.
         self.render = replace(render, **{k: getattr(cfg, k) for k in ("n_probe", "n_importance", "n_uniform")
@@ -55,9 +64,59 @@ class Tracker:
 
     def track(self, frame: MapFrame, T_init: torch.Tensor) -> TrackingResult:
         with self.model.frozen():
-            return self._track(frame, T_init)
+            if self.cfg.optimizer == "gauss_newton":
+                return self._track_gauss_newton(frame, T_init)
+            return self._track_adam(frame, T_init)
 
-    def _track(self, frame: MapFrame, T_init: torch.Tensor) -> TrackingResult:
+    def _track_gauss_newton(self, frame: MapFrame, T_init: torch.Tensor) -> TrackingResult:
+        """Levenberg-Marquardt on the colour residuals of fresh pixels each iteration; the
+        reported losses are the L1 loss of the Adam path, on the same pixels."""
+        t0 = time.perf_counter()
+        cfg = self.cfg
+        T, losses, it, iterates = T_init.detach().clone(), [], 0, []
+        target = frame.rgb.reshape(-1, 3)
+        while True:
+            uv, pix = sample_pixels(frame, cfg.rays, self.gen)
+            base = rays_for_pixels(uv, frame.intr, T)
+            o = base.origins.detach().requires_grad_(True)
+            d = base.dirs.detach().requires_grad_(True)
+            rays = RayBatch(o, d, base.z_per_dist)
+            out = render_rays(self.model, self.beta, rays, self.render)
+            mask = self._observed(rays, out)
+            res = out.rgb - target[pix]
+            losses.append(float(rgb_l1(out.rgb.detach(), target[pix], mask)))
+            if it == cfg.iters or not math.isfinite(losses[-1]):
+                break
+            # One residual per channel (three backward passes), or the grey level's (one).
+            values = out.rgb.mean(-1, keepdim=True) if cfg.residual == "grey" else out.rgb
+            r = (res.mean(-1, keepdim=True) if cfg.residual == "grey" else res).detach().T  # (C, N)
+            g = [torch.autograd.grad(values[:, c].sum(), [o, d], retain_graph=c < len(r) - 1) for c in range(len(r))]
+            g_o, g_d = torch.stack([a for a, _ in g]), torch.stack([b for _, b in g])  # (C, N, 3)
+            J = ray_twist_jacobian(g_o, g_d, d.detach(), T[:3, :3])  # (C, N, 6)
+            keep = mask if mask is not None else torch.ones_like(r[0], dtype=torch.bool)
+            J, r = J[:, keep].reshape(-1, 6), r[:, keep].reshape(-1)
+            step = damped_step(J, r, robust_weights(r, cfg.huber_delta), cfg.damping)
+            if not torch.isfinite(step).all():
+                break
+            # A step larger than the bound is shortened: a linearisation holds only nearby.
+            scale = min(1.0, cfg.max_step_m / max(float(step[:3].norm()), 1e-12),
+                        cfg.max_step_rad / max(float(step[3:].norm()), 1e-12))
+            T = T @ se3_exp(step * scale)
+            iterates.append(T)
+            it += 1
+            if float(step[:3].norm()) < cfg.stop_m and float(step[3:].norm()) < cfg.stop_rad:
+                losses.append(losses[-1])  # converged: the last step changed (almost) nothing
+                break
+        ok = [v for v in losses if math.isfinite(v)]
+        if cfg.average > 1 and len(iterates) > 1:
+            # Near the optimum each step re-fits fresh pixels: iterates scatter around it by the
+            # sampling noise; their mean (in the tangent space of the last) scatters less.
+            last = iterates[-cfg.average:]
+            xi = torch.stack([se3_log(invert(T) @ Ti) for Ti in last]).mean(0)
+            T = T @ se3_exp(xi)
+        return TrackingResult(T, min(ok) if ok else math.nan, losses[0], it, time.perf_counter() - t0)
+
+    def _track_adam(self, frame: MapFrame, T_init: torch.Tensor) -> TrackingResult:
         t0 = time.perf_counter()
         xi = torch.zeros(6, device=T_init.device, requires_grad=True)
         opt = torch.optim.Adam([xi], lr=self.cfg.lr)

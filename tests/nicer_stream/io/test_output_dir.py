@@ -36,7 +36,7 @@ def test_summary_round_trip_and_keys(tmp_path):
     path = od.write_summary(tmp_path, s)
     data = json.loads(path.read_text())
     assert SUMMARY_KEYS <= data.keys()
-    assert set(data["stages_s"]) == {"tracking", "mapping", "priors", "sinks"}
+    assert set(data["stages_s"]) == {"tracking", "frontend", "mapping", "priors", "sinks"}
     assert set(data["bound"]) == {"centre", "half_extent", "source"}
     assert od.read_summary(tmp_path) == s
     od.write_summary(tmp_path, summary())

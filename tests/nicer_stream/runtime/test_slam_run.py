@@ -26,7 +26,7 @@ def test_run_writes_the_output_contract(tmp_path, tiny_config, capsys):
         assert key in summary
     assert summary["frames"] == 6 and summary["interrupted"] is False
     assert "oracle" in summary["priors"]
-    assert set(summary["stages_s"]) == {"tracking", "mapping", "priors", "sinks"}
+    assert set(summary["stages_s"]) == {"tracking", "frontend", "mapping", "priors", "sinks"}
     # All 6 frames were handled by finish() (the two-view start never got its 10th frame):
     # its time is still split into tracking and mapping.
     assert summary["stats"]["tracking_s_per_frame"] > 0 and summary["stats"]["mapping_s_per_frame"] > 0

@@ -21,6 +21,7 @@ def test_tracker_recovers_perturbed_pose(fitted, pose_error):
 
     t0, r0 = pose_error(T_gt, T_init)
     t1, r1 = pose_error(T_gt, res.T_world_cam)
+    print("adam", res.iters, res.seconds, t0, t1, r0, r1)
     assert res.loss <= res.initial_loss
     assert t1 < 0.5 * t0, (t0, t1)
     assert r1 < 0.7 * r0, (r0, r1)
@@ -47,3 +48,18 @@ def test_observed_mask_keeps_rays_ending_in_mapped_voxels():
     mask = tracker._observed(rays, out)
     assert torch.equal(mask, dirs[:, 0] < 0)
 
+
+
+def test_gauss_newton_recovers_perturbed_pose_in_few_iterations(fitted, pose_error):
+    """Same start as the Adam test: LM reaches a pose at least as close within 8 iterations."""
+    cfg, frames, mfs, poses, model, beta = fitted
+    T_gt = poses[frames[4].index]
+    T_init = T_gt @ se3_exp(torch.tensor([0.03, -0.02, 0.02, 0.02, -0.015, 0.01]))
+    gn = replace(cfg.tracking, optimizer="gauss_newton", iters=8)
+    res = Tracker(model, beta, gn, cfg.render).track(mfs[4], T_init)
+    t0, r0 = pose_error(T_gt, T_init)
+    t1, r1 = pose_error(T_gt, res.T_world_cam)
+    print("GN", res.iters, res.seconds, t0, t1, r0, r1, res.initial_loss, res.loss)
+    assert res.iters <= 8
+    assert t1 < 0.3 * t0, (t0, t1)
+    assert r1 < 0.5 * r0, (r0, r1)

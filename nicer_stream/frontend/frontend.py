@@ -1,0 +1,145 @@
+"""The classical frontend: KLT tracks through every frame, landmarks triangulated with the
+poses the SLAM trusts, a PnP pose per frame that seeds the photometric tracker, and a local
+bundle adjustment at keyframes. Poses are T_world_cam float64 (4, 4) in the SLAM's world
+frame and scale (the landmarks come from its poses, so PnP answers in the same scale)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from nicer_stream.config import FrontendConfig
+from nicer_stream.frontend.klt import detect_corners, to_grey_u8, track
+from nicer_stream.frontend.local_ba import bundle_adjust
+from nicer_stream.frontend.triangulate import triangulate
+from nicer_stream.tracking.flow_init import pnp_pose
+from nicer_stream.types import Intrinsics
+
+
+@dataclass(frozen=True)
+class FrontendPose:
+    """T_world_cam (4, 4) float64 from PnP; RANSAC inliers; landmarks visible in the frame."""
+
+    T_world_cam: np.ndarray
+    inliers: int
+    visible: int
+
+
+class ClassicalFrontend:
+    """Call `observe` on every frame in input order, `estimate` for a frame's pose, and
+    `set_pose` once the SLAM has decided a frame's pose (`trusted=False`: not triangulated from)."""
+
+    def __init__(self, cfg: FrontendConfig) -> None:
+        self.cfg = cfg
+        self.intr: Intrinsics | None = None
+        self.prev: np.ndarray | None = None
+        self.ids = np.zeros(0, np.int64)  # tracks alive in the latest frame
+        self.uv = np.zeros((0, 2), np.float32)
+        self.next_id = 0
+        self.obs: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # frame -> (track ids, pixels)
+        self.poses: dict[int, np.ndarray] = {}  # trusted poses of observed frames
+        self.landmarks: dict[int, np.ndarray] = {}  # track id -> world point (3,)
+        self.keyframes: list[int] = []
+        self.last_ba_rms = float("nan")
+
+    # -- every frame ---------------------------------------------------------------
+    def observe(self, index: int, rgb: np.ndarray, intr: Intrinsics) -> None:
+        """Track the live features into this frame and top them up with new corners."""
+        grey = to_grey_u8(rgb)
+        if self.prev is not None and self.prev.shape == grey.shape:
+            uv, ok = track(self.prev, grey, self.uv, self.cfg.fb_px)
+            self.ids, self.uv = self.ids[ok], uv[ok]
+        else:
+            self.ids, self.uv = np.zeros(0, np.int64), np.zeros((0, 2), np.float32)
+        new = detect_corners(grey, self.cfg.corners - len(self.ids), self.cfg.min_distance_px, self.uv)
+        self.ids = np.concatenate([self.ids, np.arange(self.next_id, self.next_id + len(new))])
+        self.uv = np.concatenate([self.uv, new])
+        self.next_id += len(new)
+        self.prev, self.intr = grey, intr
+        self.obs[index] = (self.ids.copy(), self.uv.astype(np.float64))
+        for k in sorted(self.obs)[: max(0, len(self.obs) - self.cfg.window)]:
+            del self.obs[k]
+            self.poses.pop(k, None)
+        # Landmarks of tracks no frame in the window sees any more are dropped: bounded memory.
+        seen = set(np.concatenate([o[0] for o in self.obs.values()]).tolist())
+        self.landmarks = {k: X for k, X in self.landmarks.items() if k in seen}
+
+    def estimate(self, index: int, T_guess: np.ndarray) -> FrontendPose | None:
+        """PnP pose of observed frame `index` from its tracks' landmarks; None when fewer than
+        `min_inliers` landmarks agree."""
+        if index not in self.obs:
+            return None
+        ids, uv = self.obs[index]
+        has = np.array([i in self.landmarks for i in ids.tolist()], bool)
+        if has.sum() < self.cfg.min_inliers:
+            return None
+        X = np.stack([self.landmarks[i] for i in ids[has].tolist()])
+        res = pnp_pose(X, uv[has], self.intr, T_guess, self.cfg.reproj_px, self.cfg.min_inliers)
+        return None if res is None else FrontendPose(res[0], res[1], int(has.sum()))
+
+    # -- poses the SLAM decided --------------------------------------------------------
+    def set_pose(self, index: int, T_world_cam: np.ndarray, trusted: bool = True, keyframe: bool = False) -> None:
+        """Record the SLAM's pose of `index`; a trusted one triangulates new landmarks against
+        the oldest posed frame that saw each track, and a keyframe runs the local BA."""
+        if index not in self.obs or not trusted:
+            return
+        self.poses[index] = np.asarray(T_world_cam, np.float64)
+        self._triangulate(index)
+        if keyframe and index not in self.keyframes:
+            self.keyframes = [k for k in self.keyframes if k in self.poses] + [index]
+            self._bundle_adjust()
+
+    def update_poses(self, poses: dict[int, np.ndarray]) -> None:
+        """Poses the mapping's local BA moved (only frames the frontend already holds)."""
+        for k, T in poses.items():
+            if k in self.poses:
+                self.poses[k] = np.asarray(T, np.float64)
+
+    def _triangulate(self, index: int) -> None:
+        ids, uv = self.obs[index]
+        new = ~np.array([i in self.landmarks for i in ids.tolist()], bool)
+        for k in sorted(self.poses):  # oldest first: the widest baseline for each track
+            if k == index or not new.any():
+                continue
+            ids_k, uv_k = self.obs[k]
+            pos = {t: j for j, t in enumerate(ids_k.tolist())}
+            sel = np.array([new[j] and t in pos for j, t in enumerate(ids.tolist())], bool)
+            if not sel.any():
+                continue
+            j_k = np.array([pos[t] for t in ids[sel].tolist()])
+            X, ok = triangulate(self.poses[k], self.poses[index], uv_k[j_k], uv[sel], self.intr,
+                                self.cfg.reproj_px, self.cfg.min_parallax_deg)
+            for t, x in zip(ids[sel][ok].tolist(), X[ok]):
+                self.landmarks[t] = x
+            new[np.flatnonzero(sel)[ok]] = False
+
+    def _bundle_adjust(self) -> None:
+        frames = self.keyframes[-self.cfg.ba_keyframes:]
+        if len(frames) <= self.cfg.ba_fixed or not self.landmarks:
+            return
+        counts: dict[int, int] = {}
+        for k in frames:
+            for t in self.obs[k][0].tolist():
+                if t in self.landmarks:
+                    counts[t] = counts.get(t, 0) + 1
+        lm_ids = sorted(t for t, c in counts.items() if c >= 2)  # seen twice: constrained
+        if not lm_ids:
+            return
+        col = {t: j for j, t in enumerate(lm_ids)}
+        cam, pt, uv = [], [], []
+        for c, k in enumerate(frames):
+            ids_k, uv_k = self.obs[k]
+            for j, t in enumerate(ids_k.tolist()):
+                if t in col:
+                    cam.append(c)
+                    pt.append(col[t])
+                    uv.append(uv_k[j])
+        if len(cam) < 6 * len(frames):
+            return
+        poses, X, self.last_ba_rms = bundle_adjust([self.poses[k] for k in frames], self.cfg.ba_fixed,
+                                                   np.stack([self.landmarks[t] for t in lm_ids]), np.array(cam),
+                                                   np.array(pt), np.array(uv), self.intr, self.cfg.reproj_px)
+        for k, T in zip(frames, poses):
+            self.poses[k] = T
+        for t, x in zip(lm_ids, X):
+            self.landmarks[t] = x

@@ -1,0 +1,44 @@
+"""Two-view triangulation of pixel pairs with known camera poses (pure numpy)."""
+from __future__ import annotations
+
+import numpy as np
+
+from nicer_stream.types import Intrinsics
+
+
+def project(T_world_cam: np.ndarray, X: np.ndarray, intr: Intrinsics) -> tuple[np.ndarray, np.ndarray]:
+    """World points (N, 3) -> (pixels (N, 2), z-depth (N,)) in the camera at `T_world_cam`."""
+    T_cw = np.linalg.inv(T_world_cam)
+    p = X @ T_cw[:3, :3].T + T_cw[:3, 3]
+    z = p[:, 2]
+    zs = np.where(np.abs(z) < 1e-9, 1e-9, z)
+    uv = np.stack([intr.fx * p[:, 0] / zs + intr.cx, intr.fy * p[:, 1] / zs + intr.cy], -1)
+    return uv, z
+
+
+def triangulate(T_a: np.ndarray, T_b: np.ndarray, uv_a: np.ndarray, uv_b: np.ndarray, intr: Intrinsics,
+                max_reproj_px: float = 2.0, min_parallax_deg: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Linear (DLT) triangulation of N pixel pairs seen from T_world_cam `T_a` and `T_b`.
+
+    Returns (world points (N, 3), ok (N,) bool): in front of both cameras, reprojecting
+    within `max_reproj_px` in both, with rays at least `min_parallax_deg` apart (less
+    parallax gives depths that noise dominates)."""
+    K = intr.matrix()
+    P = [K @ np.linalg.inv(T)[:3] for T in (T_a, T_b)]
+    n = len(uv_a)
+    A = np.empty((n, 4, 4))
+    for k, (Pk, uv) in enumerate(zip(P, (uv_a, uv_b))):
+        A[:, 2 * k] = uv[:, :1] * Pk[2] - Pk[0]
+        A[:, 2 * k + 1] = uv[:, 1:2] * Pk[2] - Pk[1]
+    _, _, vt = np.linalg.svd(A)
+    Xh = vt[:, -1]
+    w = np.where(np.abs(Xh[:, 3]) < 1e-12, 1e-12, Xh[:, 3])
+    X = Xh[:, :3] / w[:, None]
+    ok = np.ones(n, bool)
+    for T, uv in ((T_a, uv_a), (T_b, uv_b)):
+        pr, z = project(T, X, intr)
+        ok &= (z > 0) & (np.linalg.norm(pr - uv, axis=1) < max_reproj_px)
+    ra, rb = X - T_a[:3, 3], X - T_b[:3, 3]
+    cos = (ra * rb).sum(1) / np.maximum(np.linalg.norm(ra, axis=1) * np.linalg.norm(rb, axis=1), 1e-12)
+    ok &= cos < np.cos(np.radians(min_parallax_deg))
+    return X, ok

@@ -1,0 +1,65 @@
+"""The classical frontend on the synthetic scenes: with the first poses given (as the SLAM's
+start gives them), PnP on triangulated KLT tracks follows the camera; bounded memory."""
+import numpy as np
+import pytest
+
+from nicer_stream.config import FrontendConfig
+from nicer_stream.frontend.frontend import ClassicalFrontend
+from nicer_stream.geometry.se3 import rotation_angle
+from sources import open_source
+from sources.base import SourceOptions
+
+import torch
+
+
+def _err(T_gt, T):
+    d = np.linalg.inv(T_gt) @ T
+    return float(np.linalg.norm(d[:3, 3])), float(np.degrees(rotation_angle(torch.from_numpy(d[:3, :3]))))
+
+
+@pytest.mark.parametrize("uri, frames", [("synthetic:room?frames=120", 30), ("synthetic:street?frames=40&grey=1", 25)])
+def test_frontend_follows_the_camera_from_two_known_poses(uri, frames):
+    """Frames 0 and 5 posed from ground truth, every later frame estimated by PnP and then fed
+    back as trusted (what the SLAM does without photometric refinement): the error stays small
+    against the path length."""
+    src = list(open_source(uri, SourceOptions(max_frames=frames)))
+    fe = ClassicalFrontend(FrontendConfig())
+    path = sum(np.linalg.norm(b.gt_pose[:3, 3] - a.gt_pose[:3, 3]) for a, b in zip(src, src[1:]))
+    for f in src[:6]:
+        fe.observe(f.index, f.rgb, f.intrinsics)
+    fe.set_pose(0, src[0].gt_pose, keyframe=True)
+    fe.set_pose(5, src[5].gt_pose, keyframe=True)
+    errs = []
+    for k, f in enumerate(src[1:5], start=1):  # the frames held before the second view
+        est = fe.estimate(f.index, src[k - 1].gt_pose)
+        assert est is not None and est.inliers >= 30
+        errs.append(_err(f.gt_pose, est.T_world_cam)[0])
+    T_prev = src[5].gt_pose
+    for k, f in enumerate(src[6:], start=6):
+        fe.observe(f.index, f.rgb, f.intrinsics)
+        est = fe.estimate(f.index, T_prev)
+        assert est is not None, f"frame {f.index}: no pose"
+        t_err, r_err = _err(f.gt_pose, est.T_world_cam)
+        errs.append(t_err)
+        assert r_err < 1.0, (f.index, r_err)
+        fe.set_pose(f.index, est.T_world_cam, keyframe=k % 5 == 0)
+        T_prev = est.T_world_cam
+    print([round(e * 1000, 1) for e in errs], path)
+    assert max(errs) < 0.02 * path, (max(errs), path)  # dead reckoning: room 1.6%
+    assert len(fe.obs) <= fe.cfg.window
+
+
+def test_untrusted_pose_is_not_triangulated_from():
+    src = list(open_source("synthetic:room?frames=120", SourceOptions(max_frames=8)))
+    fe = ClassicalFrontend(FrontendConfig())
+    for f in src:
+        fe.observe(f.index, f.rgb, f.intrinsics)
+    fe.set_pose(0, src[0].gt_pose, keyframe=True)
+    fe.set_pose(7, src[7].gt_pose @ np.diag([1.0, 1.0, 1.0, 1.0]), trusted=False)
+    assert not fe.landmarks and 7 not in fe.poses
+    fe.set_pose(7, src[7].gt_pose, keyframe=True)
+    assert len(fe.landmarks) > 50
+    X = np.stack(list(fe.landmarks.values()))
+    # landmarks lie in the room (GT geometry): inside its bounds
+    lo, hi = src[0].gt_pose[:3, 3] - 10, src[0].gt_pose[:3, 3] + 10
+    assert ((X > lo) & (X < hi)).all()
