@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The measurements named in the issues (long: run one at a time on a 2-core CPU).
-# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|run-none|run-synth|run10|run10-paper|flow|speedup|iters] [OUTROOT]
+# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|run-none|run-synth|run10|run10-paper|flow|speedup|iters|frontend|street|jump] [OUTROOT]
 # speedup: the Replica `run` of commit BASE (default c64946b; a git worktree in OUTROOT/base_worktree)
 #   and of this tree (uncommitted edits included) back to back, then scripts/speedup_table.py
 #   (~15 min). EXTRA="..." appends arguments to both runs (e.g. EXTRA="--max-frames 3").
@@ -46,6 +46,17 @@ case "${1:-all}" in
   run-none)  t $NS run --source $REPLICA --priors none --preset fast --out $OUT/run_none ;;
   run10)     t $NS run --source $REPLICA --priors oracle --preset fast --max-frames 10 --out $OUT/run10_fast ;;
   run10-paper) t $NS run --source $REPLICA --priors oracle --preset paper --max-frames 10 --max-side 320 --render-every 100 --out $OUT/run10_paper ;;
+  frontend)  # issue 17: the Replica run with the classical frontend (seed 0), and the frontend alone
+             mkdir -p $OUT
+             printf '[tracking]\nfrontend = "classical"\n' > $OUT/frontend.toml
+             printf '[tracking]\nfrontend = "classical"\niters = 0\n' > $OUT/frontend_only.toml
+             t $NS run --source $REPLICA --priors oracle --preset fast --config $OUT/frontend.toml --out $OUT/run_frontend
+             t $NS run --source $REPLICA --priors oracle --preset fast --config $OUT/frontend_only.toml --out $OUT/run_frontend_only ;;
+  street)    # issue 17: the synthetic street, 100 frames, without priors, frontend on (PRIORS= to change)
+             mkdir -p $OUT && printf '[tracking]\nfrontend = "classical"\n' > $OUT/frontend.toml
+             t $NS run --source "synthetic:street?frames=100" --priors ${PRIORS:-none} --preset fast --config $OUT/frontend.toml --out $OUT/run_street_${PRIORS:-none} ;;
+  jump)      # issue 17: 5 frames removed from the middle of the Replica clip (CONFIG= a toml to add)
+             t $NS run --source $REPLICA --priors oracle --preset fast --drop 8:13 ${CONFIG:+--config $CONFIG} --out $OUT/run_jump ;;
   run-synth) t $NS run --source "synthetic:room?frames=100" --priors oracle --preset fast --out $OUT/run_synth ;;
   iters)     # per-iteration costs (mapping, tracking) with FLOPs and sgemm: BASE's code at fast sizes
              # (needs the worktree of `speedup`), then this tree at fast and paper sizes
