@@ -246,15 +246,19 @@ class FrontendConfig:
     """Inlier threshold of PnP, triangulation and the BA's Huber loss, pixels."""
     min_inliers: int = 30
     """A PnP pose needs this many agreeing landmarks."""
+    init_parallax_deg: float = 2.0
+    """Without a depth prior, the SLAM starts once the first frame and the latest share tracks
+    whose median parallax is this large (the essential matrix gives the second pose)."""
     ba_keyframes: int = 6
     """Keyframes in the local bundle adjustment."""
     ba_fixed: int = 2
     """Its oldest this many keyframes stay fixed (gauge and scale come from the map)."""
-    max_disagreement_m: float = 0.05
-    """Photometric and frontend poses further apart than this (or than `max_disagreement_frac`
-    of the frame's motion, whichever is larger) are a tracking loss: the frontend's is kept."""
+    max_disagreement_depth_frac: float = 0.005
+    """Photometric and frontend poses further apart than this fraction of the landmarks' median
+    depth (or than `max_disagreement_frac` of the frame's motion, whichever is larger) are a
+    tracking loss: the frontend's pose is kept, the frame is not mapped from."""
     max_disagreement_frac: float = 0.3
-    """See `max_disagreement_m`."""
+    """See `max_disagreement_depth_frac`."""
     max_disagreement_deg: float = 2.0
     """Rotation bound of the same check, degrees."""
 

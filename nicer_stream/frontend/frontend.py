@@ -11,23 +11,29 @@ import numpy as np
 from nicer_stream.config import FrontendConfig
 from nicer_stream.frontend.klt import detect_corners, to_grey_u8, track
 from nicer_stream.frontend.local_ba import bundle_adjust
-from nicer_stream.frontend.triangulate import triangulate
+from nicer_stream.frontend.triangulate import project, triangulate
 from nicer_stream.tracking.flow_init import pnp_pose
 from nicer_stream.types import Intrinsics
 
 
 @dataclass(frozen=True)
 class FrontendPose:
-    """T_world_cam (4, 4) float64 from PnP; RANSAC inliers; landmarks visible in the frame."""
+    """T_world_cam (4, 4) float64 from PnP; RANSAC inliers; landmarks visible in the frame and
+    their median z-depth in it (the scene's scale, in the map's unit)."""
 
     T_world_cam: np.ndarray
     inliers: int
     visible: int
+    median_depth: float
 
 
 class ClassicalFrontend:
     """Call `observe` on every frame in input order, `estimate` for a frame's pose, and
-    `set_pose` once the SLAM has decided a frame's pose (`trusted=False`: not triangulated from)."""
+    `set_pose` once the SLAM has decided a frame's pose (`trusted=False`: not triangulated from).
+
+    Its landmarks are triangulated with its own poses (PnP, then the local BA) wherever it has
+    one: the SLAM's pose is adopted only for frames it could not place (the start). So a map
+    that pulls the photometric poses does not corrupt the frontend that is meant to catch it."""
 
     def __init__(self, cfg: FrontendConfig) -> None:
         self.cfg = cfg
@@ -40,6 +46,7 @@ class ClassicalFrontend:
         self.poses: dict[int, np.ndarray] = {}  # trusted poses of observed frames
         self.landmarks: dict[int, np.ndarray] = {}  # track id -> world point (3,)
         self.keyframes: list[int] = []
+        self.own: dict[int, np.ndarray] = {}  # its own PnP poses, by frame
         self.last_ba_rms = float("nan")
 
     # -- every frame ---------------------------------------------------------------
@@ -60,6 +67,7 @@ class ClassicalFrontend:
         for k in sorted(self.obs)[: max(0, len(self.obs) - self.cfg.window)]:
             del self.obs[k]
             self.poses.pop(k, None)
+            self.own.pop(k, None)
         # Landmarks of tracks no frame in the window sees any more are dropped: bounded memory.
         seen = set(np.concatenate([o[0] for o in self.obs.values()]).tolist())
         self.landmarks = {k: X for k, X in self.landmarks.items() if k in seen}
@@ -75,7 +83,51 @@ class ClassicalFrontend:
             return None
         X = np.stack([self.landmarks[i] for i in ids[has].tolist()])
         res = pnp_pose(X, uv[has], self.intr, T_guess, self.cfg.reproj_px, self.cfg.min_inliers)
-        return None if res is None else FrontendPose(res[0], res[1], int(has.sum()))
+        if res is None:
+            return None
+        z = project(res[0], X, self.intr)[1]
+        self.own[index] = res[0]
+        return FrontendPose(res[0], res[1], int(has.sum()), float(np.median(z)))
+
+    def two_view(self, first: int, second: int, median_m: float) -> tuple[np.ndarray, np.ndarray, int] | None:
+        """A start without depth priors: T_world_cam (4, 4) of `second` with `first` at the
+        identity, from the essential matrix of their common tracks, scaled so the median depth
+        of the triangulated inliers in `first` is `median_m`; with those points (M, 3) and the
+        inlier count. None with fewer than 2 * `min_inliers` inliers or median parallax below
+        `init_parallax_deg`."""
+        import cv2
+
+        if first not in self.obs or second not in self.obs:
+            return None
+        (ids0, uv0), (ids1, uv1) = self.obs[first], self.obs[second]
+        common, i0, i1 = np.intersect1d(ids0, ids1, return_indices=True)
+        if len(common) < 2 * self.cfg.min_inliers:
+            return None
+        K = self.intr.matrix()
+        n0 = (uv0[i0] - K[:2, 2]) / [K[0, 0], K[1, 1]]
+        n1 = (uv1[i1] - K[:2, 2]) / [K[0, 0], K[1, 1]]
+        E, mask = cv2.findEssentialMat(n0, n1, np.eye(3), cv2.RANSAC, 0.999, self.cfg.reproj_px / 2 / K[0, 0])
+        if E is None or E.shape != (3, 3):
+            return None
+        n_in, R, t, mask = cv2.recoverPose(E, n0, n1, np.eye(3), mask=mask)
+        if n_in < 2 * self.cfg.min_inliers:
+            return None
+        T_second_first = np.eye(4)
+        T_second_first[:3, :3], T_second_first[:3, 3] = R, t[:, 0]
+        T1 = np.linalg.inv(T_second_first)
+        inl = mask[:, 0] > 0
+        X, ok = triangulate(np.eye(4), T1, uv0[i0][inl], uv1[i1][inl], self.intr, self.cfg.reproj_px, 0.0)
+        if ok.sum() < 2 * self.cfg.min_inliers:
+            return None
+        X = X[ok]
+        rays0, rays1 = X / np.linalg.norm(X, axis=1, keepdims=True), X - T1[:3, 3]
+        rays1 /= np.linalg.norm(rays1, axis=1, keepdims=True)
+        parallax = np.degrees(np.median(np.arccos(np.clip((rays0 * rays1).sum(1), -1, 1))))
+        if parallax < self.cfg.init_parallax_deg:
+            return None
+        s = median_m / float(np.median(X[:, 2]))
+        T1[:3, 3] *= s
+        return T1, X * s, int(n_in)
 
     # -- poses the SLAM decided --------------------------------------------------------
     def set_pose(self, index: int, T_world_cam: np.ndarray, trusted: bool = True, keyframe: bool = False) -> None:
@@ -83,17 +135,11 @@ class ClassicalFrontend:
         the oldest posed frame that saw each track, and a keyframe runs the local BA."""
         if index not in self.obs or not trusted:
             return
-        self.poses[index] = np.asarray(T_world_cam, np.float64)
+        self.poses[index] = self.own.pop(index, np.asarray(T_world_cam, np.float64))
         self._triangulate(index)
         if keyframe and index not in self.keyframes:
-            self.keyframes = [k for k in self.keyframes if k in self.poses] + [index]
+            self.keyframes = sorted([k for k in self.keyframes if k in self.poses] + [index])
             self._bundle_adjust()
-
-    def update_poses(self, poses: dict[int, np.ndarray]) -> None:
-        """Poses the mapping's local BA moved (only frames the frontend already holds)."""
-        for k, T in poses.items():
-            if k in self.poses:
-                self.poses[k] = np.asarray(T, np.float64)
 
     def _triangulate(self, index: int) -> None:
         ids, uv = self.obs[index]
@@ -114,7 +160,7 @@ class ClassicalFrontend:
             new[np.flatnonzero(sel)[ok]] = False
 
     def _bundle_adjust(self) -> None:
-        frames = self.keyframes[-self.cfg.ba_keyframes:]
+        frames = self.keyframes[-self.cfg.ba_keyframes:] if self.cfg.ba_keyframes > 0 else []
         if len(frames) <= self.cfg.ba_fixed or not self.landmarks:
             return
         counts: dict[int, int] = {}

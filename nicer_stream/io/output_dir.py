@@ -45,7 +45,7 @@ class StageSeconds:
     sinks: float = 0.0
 
 
-BOUND_SOURCES = ("config", "depth_prior", "cameras")
+BOUND_SOURCES = ("config", "depth_prior", "cameras", "landmarks")
 
 
 @dataclass

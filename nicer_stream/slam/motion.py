@@ -40,16 +40,18 @@ def tracking_failure(T: torch.Tensor, T_pred: torch.Tensor, loss: float, recent_
     return None
 
 
-def frontend_disagreement(T: torch.Tensor, T_front: torch.Tensor, T_prev: torch.Tensor, cfg) -> str | None:
+def frontend_disagreement(T: torch.Tensor, T_front: torch.Tensor, T_prev: torch.Tensor, depth: float,
+                          cfg) -> str | None:
     """A reason string when the photometric pose `T` and the frontend's `T_front` disagree by
-    more than `cfg` (FrontendConfig) allows: the translation bound grows with the frame's
-    motion (from `T_prev`, the previous frame's pose), the rotation bound is fixed."""
+    more than `cfg` (FrontendConfig) allows. The translation bound scales with the scene (a
+    fraction of `depth`, the median depth of the frontend's landmarks) and with the frame's
+    motion from `T_prev`, the previous frame's pose: the SLAM's unit of length is a convention."""
     delta = invert(T_front) @ T
     dist = float(delta[:3, 3].norm())
     motion = float((T_front[:3, 3] - T_prev[:3, 3]).norm())
-    bound = max(cfg.max_disagreement_m, cfg.max_disagreement_frac * motion)
+    bound = max(cfg.max_disagreement_depth_frac * depth, cfg.max_disagreement_frac * motion)
     if dist > bound:
-        return f"photometric pose {dist * 100:.1f} cm from the frontend's (bound {bound * 100:.1f} cm)"
+        return f"photometric pose {dist:.3g} from the frontend's (bound {bound:.3g}; unit: the map's)"
     ang = math.degrees(float(rotation_angle(delta[:3, :3])))
     if ang > cfg.max_disagreement_deg:
         return f"photometric pose rotated {ang:.2f} deg from the frontend's (bound {cfg.max_disagreement_deg} deg)"

@@ -21,7 +21,7 @@ from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.depth_shift import shift_from_normals
 from nicer_stream.mapping.mapper import Mapper
 from nicer_stream.mapping.prior_alignment import align_prior_to_map, align_to_widest_partner
-from nicer_stream.model.bound import SceneBound
+from nicer_stream.model.bound import SceneBound, bound_from_points
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.runtime.bound_estimate import bound_from_config, bound_from_depth
@@ -88,6 +88,8 @@ class SlamSystem:
         self.init_note = ""
         self.frontend = ClassicalFrontend(cfg.frontend) if cfg.tracking.frontend == "classical" else None
         self.frontend_seconds = 0.0
+        self._fview = None  # (frame index, frontend two-view result) of the start without priors
+        self._frontend_kept: set[int] = set()  # lost frames whose pose is the frontend's
 
     # -- per frame -------------------------------------------------------------------
     def step(self, frame: Frame, priors: Priors | None = None) -> list[Event]:
@@ -116,10 +118,25 @@ class SlamSystem:
         return self._advance(mf, frame)
 
     def _waits(self, mf: MapFrame | None) -> bool:
-        """Hold frames for the two-view start: until `init_frames` frames follow the first."""
-        if self.cfg.mapping.init != "two_view" or not self.pending and (mf is None or mf.depth_prior is None):
+        """Hold frames for the two-view start: until `init_frames` frames follow the first; without
+        a depth prior (the frontend's start) only until the frontend sees enough parallax."""
+        if self.cfg.mapping.init != "two_view":
+            return False
+        if not self.pending:
+            return mf is not None and (mf.depth_prior is not None or self.frontend is not None)
+        if self.pending[0].depth_prior is None and mf is not None and self._frontend_view(mf.index) is not None:
             return False
         return len(self.pending) < self.cfg.mapping.init_frames
+
+    def _frontend_view(self, index: int):
+        """The frontend's two-view geometry between the first held frame and `index` (cached)."""
+        if self.frontend is None or not self.pending:
+            return None
+        if self._fview is None or self._fview[0] != index:
+            with self._frontend_timer():
+                got = self.frontend.two_view(self.pending[0].index, index, self.cfg.loss.first_depth_median_m)
+            self._fview = (index, got)
+        return self._fview[1]
 
     def _advance(self, mf: MapFrame | None, frame: Frame, T_known: torch.Tensor | None = None) -> list[Event]:
         """One frame through the normal schedule: track (or take `T_known`), store, keyframe, map."""
@@ -145,7 +162,7 @@ class SlamSystem:
         is_kf = len(self.order) % self.cfg.mapping.keyframe_every == 1 or self.cfg.mapping.keyframe_every == 1
         # A frame whose pose is not trusted never becomes a keyframe nor starts a mapping call.
         trusted = i not in self.lost_frames
-        self._frontend_pose(i, self.poses[i], trusted, is_kf)
+        self._frontend_pose(i, self.poses[i], trusted or i in self._frontend_kept, is_kf)
         if is_kf and trusted and i not in self.keyframes:
             self.keyframes.append(i)
             events.append(KeyframeAdded(i))
@@ -169,9 +186,11 @@ class SlamSystem:
         return [self._map(self.order[-1], self.cfg.mapping.iters, closing=True)]
 
     # -- stages ----------------------------------------------------------------------
-    def _initialise(self, mf: MapFrame, second: MapFrame | None = None, view: TwoView | None = None) -> list[Event]:
+    def _initialise(self, mf: MapFrame, second: MapFrame | None = None, view: TwoView | None = None,
+                    points: np.ndarray | None = None) -> list[Event]:
         """Bound, scene and the first mapping from `mf` at the identity (and `second` at
-        the two-view pose, both priors' (w, q) fixed from then on)."""
+        the two-view pose, both priors' (w, q) fixed from then on). Without a depth prior, the
+        frontend's triangulated `points` (M, 3) world, when given, set the bound."""
         T0 = torch.eye(4, device=self.device)
         self.poses[mf.index] = T0
         cfg = self.cfg
@@ -186,6 +205,9 @@ class SlamSystem:
             w, q = self.scale_rule
             depth_m = ((mf.depth_prior - q) / w).clamp_min(0).cpu().numpy()
             self.bound = bound_from_depth(depth_m, mf.intr, T0.cpu().numpy().astype(np.float64), cfg.bound)
+        elif points is not None and cfg.bound.mode == "auto":
+            cams = np.stack([np.zeros(3), view.T_world_second[:3, 3]])
+            self.bound = bound_from_points(np.concatenate([points, cams]), cfg.bound.margin, "landmarks")
         else:
             self.bound = bound_from_config(cfg.bound)
         for f in [mf] + ([second] if second is not None else []):
@@ -215,15 +237,24 @@ class SlamSystem:
         self.pending, self.pending_raw = [], []
         first = held[0][0]
         last = next((m for m, _ in reversed(held[1:]) if m is not None), None)
-        view = two_view_init(first, last, self.cfg.loss.first_depth_median_m) if last is not None else None
+        view, points = None, None
+        fview = self._fview[1] if self._fview is not None and last is not None and self._fview[0] == last.index else None
+        if first.depth_prior is None and fview is not None:
+            T1, points, n_in = fview
+            view = TwoView(T1, None, None, n_in)
+            self.init_note = (f"two-view start with frame {last.index} from the frontend's tracks ({n_in} "
+                              f"essential-matrix inliers), first frame's median tracked depth taken as "
+                              f"{self.cfg.loss.first_depth_median_m} m")
+        elif last is not None:
+            view = two_view_init(first, last, self.cfg.loss.first_depth_median_m)
         if view is None:
             log.warning("two-view start failed (too little parallax or flow): scale and shift from frame %d alone",
                         first.index)
             self.init_note = "two-view start failed: first frame's shift from the normal prior"
-        else:
+        elif points is None:
             self.init_note = (f"two-view start with frame {last.index} ({view.inliers} essential-matrix inliers): "
                               f"first prior's shift {view.first_scale_shift[1]:.3f} from flow triangulation")
-        events = self._initialise(first, last if view is not None else None, view)
+        events = self._initialise(first, last if view is not None else None, view, points)
         events += self._record(first, held[0][1])  # a keyframe since it was held
         for m, f in held[1:]:
             known = self.poses[m.index] if (view is not None and m is last) else None
@@ -242,11 +273,13 @@ class SlamSystem:
         res = self.tracker.track(mf, T_pred)
         reason = tracking_failure(res.T_world_cam, T_pred, res.loss, self.recent_losses, self.cfg.tracking)
         if reason is None and front is not None:
-            reason = frontend_disagreement(res.T_world_cam, T_pred, history[-1], self.cfg.frontend)
+            reason = frontend_disagreement(res.T_world_cam, T_pred, history[-1], front.median_depth, self.cfg.frontend)
         if reason is None and front is None and self.frontend is not None and len(self.keyframes) > 2:
             log.info("frame %d: the frontend has no pose (too few tracked landmarks)", mf.index)
         # On a detection the frontend's pose (else the motion model's) is kept.
         T = T_pred if reason else res.T_world_cam
+        if reason and front is not None:
+            self._frontend_kept.add(mf.index)  # its own pose: consistent with its landmarks
         if reason:
             self.lost_frames.append(mf.index)
             log.warning("frame %d: tracking lost (%s): using the %s pose", mf.index, reason,
@@ -318,8 +351,6 @@ class SlamSystem:
         label = f"{'closing mapping' if closing else 'mapping'} @ frame {current}"
         stats = self.mapper.optimise([self.frames[k] for k in window], self.poses, iters, ba_indices=ba,
                                      progress=self._progress(label))
-        if self.frontend is not None and ba:
-            self.frontend.update_poses({k: self.poses[k].double().cpu().numpy() for k in ba})
         return MapUpdated(current, tuple(window), stats.loss, stats.iters, stats.seconds)
 
     def _align_by_flow(self, window: list[int]) -> None:

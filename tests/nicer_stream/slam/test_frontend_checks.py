@@ -18,13 +18,18 @@ from sources.base import SourceOptions
 
 
 def test_disagreement_bounds():
-    cfg = FrontendConfig(max_disagreement_m=0.05, max_disagreement_frac=0.3, max_disagreement_deg=2.0)
+    """Bounds in the map's unit: 0.5% of the landmarks' median depth (2 -> 1 cm), or 30% of
+    the frame's motion when larger (40 cm -> 12 cm); rotation 2 degrees."""
+    cfg = FrontendConfig(max_disagreement_depth_frac=0.005, max_disagreement_frac=0.3, max_disagreement_deg=2.0)
     prev = torch.eye(4)
-    front = se3_exp(torch.tensor([0.0, 0.0, 0.4, 0.0, 0.0, 0.0]))  # moved 40 cm: bound 12 cm
-    assert frontend_disagreement(front @ se3_exp(torch.tensor([0.1, 0, 0, 0, 0, 0])), front, prev, cfg) is None
-    reason = frontend_disagreement(front @ se3_exp(torch.tensor([0.15, 0, 0, 0, 0, 0])), front, prev, cfg)
-    assert reason is not None and "15.0 cm from the frontend's" in reason
-    reason = frontend_disagreement(front @ se3_exp(torch.tensor([0, 0, 0, 0.05, 0, 0])), front, prev, cfg)
+    front = se3_exp(torch.tensor([0.0, 0.0, 0.4, 0.0, 0.0, 0.0]))
+    assert frontend_disagreement(front @ se3_exp(torch.tensor([0.1, 0, 0, 0, 0, 0])), front, prev, 2.0, cfg) is None
+    reason = frontend_disagreement(front @ se3_exp(torch.tensor([0.15, 0, 0, 0, 0, 0])), front, prev, 2.0, cfg)
+    assert reason is not None and "0.15 from the frontend's (bound 0.12" in reason, reason
+    still = se3_exp(torch.tensor([0.0, 0.0, 0.001, 0.0, 0.0, 0.0]))  # hardly moved: the depth term
+    assert frontend_disagreement(still @ se3_exp(torch.tensor([0.008, 0, 0, 0, 0, 0])), still, prev, 2.0, cfg) is None
+    assert frontend_disagreement(still @ se3_exp(torch.tensor([0.012, 0, 0, 0, 0, 0])), still, prev, 2.0, cfg)
+    reason = frontend_disagreement(front @ se3_exp(torch.tensor([0, 0, 0, 0.05, 0, 0])), front, prev, 2.0, cfg)
     assert reason is not None and "rotated 2.86 deg" in reason
 
 
@@ -64,11 +69,27 @@ def test_a_wrong_photometric_pose_is_detected_and_the_frontend_pose_kept(cfg, mo
     assert not any(isinstance(e, KeyframeAdded) for e in events)
 
 
-def test_agreeing_poses_pass_and_the_frontend_seeds_tracking(cfg):
+def test_the_frontend_seeds_tracking(cfg, monkeypatch):
+    """Once it has landmarks, every frame's photometric tracking starts at the frontend's PnP pose."""
     slam = SlamSystem(cfg)
+    seeds, estimates = {}, {}
+    real_track, real_estimate = Tracker.track, type(slam.frontend).estimate
+
+    def spy_track(self, frame, T_init):
+        seeds[frame.index] = T_init.clone()
+        return real_track(self, frame, T_init)
+
+    def spy_estimate(self, index, T_guess):
+        est = real_estimate(self, index, T_guess)
+        estimates[index] = est
+        return est
+
+    monkeypatch.setattr(Tracker, "track", spy_track)
+    monkeypatch.setattr(type(slam.frontend), "estimate", spy_estimate)
     for f in _frames(8):
         slam.step(f)
-    assert slam.lost_frames == []
+    placed = [i for i, e in estimates.items() if e is not None]
+    assert len(placed) >= 4, estimates
+    for i in placed:
+        assert np.allclose(seeds[i].double().numpy(), estimates[i].T_world_cam, atol=1e-5)
     assert slam.frontend_seconds > 0
-    est = slam.frontend.estimate(7, slam.poses[7].double().numpy())
-    assert est is not None and est.inliers >= cfg.frontend.min_inliers
