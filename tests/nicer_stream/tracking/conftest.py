@@ -16,7 +16,7 @@ from sources import open_source
 from sources.base import SourceOptions
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # read-only for its users: built once (~1 min), not per module
 def fitted(tmp_path_factory, tiny_toml):
     """A small map of the synthetic room fitted with GT poses: (cfg, frames, map frames, poses, model, beta)."""
     torch.manual_seed(0)
