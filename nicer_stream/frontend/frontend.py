@@ -12,6 +12,7 @@ from nicer_stream.config import FrontendConfig
 from nicer_stream.frontend.klt import detect_corners, to_grey_u8, track
 from nicer_stream.frontend.local_ba import bundle_adjust
 from nicer_stream.frontend.triangulate import project, triangulate
+from nicer_stream.slam.two_view import essential_pose
 from nicer_stream.tracking.flow_init import pnp_pose
 from nicer_stream.types import Intrinsics
 
@@ -95,27 +96,16 @@ class ClassicalFrontend:
         of the triangulated inliers in `first` is `median_m`; with those points (M, 3) and the
         inlier count. None with fewer than 2 * `min_inliers` inliers or median parallax below
         `init_parallax_deg`."""
-        import cv2
-
         if first not in self.obs or second not in self.obs:
             return None
         (ids0, uv0), (ids1, uv1) = self.obs[first], self.obs[second]
         common, i0, i1 = np.intersect1d(ids0, ids1, return_indices=True)
         if len(common) < 2 * self.cfg.min_inliers:
             return None
-        K = self.intr.matrix()
-        n0 = (uv0[i0] - K[:2, 2]) / [K[0, 0], K[1, 1]]
-        n1 = (uv1[i1] - K[:2, 2]) / [K[0, 0], K[1, 1]]
-        E, mask = cv2.findEssentialMat(n0, n1, np.eye(3), cv2.RANSAC, 0.999, self.cfg.reproj_px / 2 / K[0, 0])
-        if E is None or E.shape != (3, 3):
+        rel = essential_pose(uv0[i0], uv1[i1], self.intr, self.cfg.reproj_px / 2, 2 * self.cfg.min_inliers)
+        if rel is None:
             return None
-        n_in, R, t, mask = cv2.recoverPose(E, n0, n1, np.eye(3), mask=mask)
-        if n_in < 2 * self.cfg.min_inliers:
-            return None
-        T_second_first = np.eye(4)
-        T_second_first[:3, :3], T_second_first[:3, 3] = R, t[:, 0]
-        T1 = np.linalg.inv(T_second_first)
-        inl = mask[:, 0] > 0
+        T1, n_in, inl = rel
         X, ok = triangulate(np.eye(4), T1, uv0[i0][inl], uv1[i1][inl], self.intr, self.cfg.reproj_px, 0.0)
         if ok.sum() < 2 * self.cfg.min_inliers:
             return None

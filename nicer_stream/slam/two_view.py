@@ -25,6 +25,7 @@ import torch
 from nicer_stream.geometry.camera import camera_dirs, pixel_grid
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.prior_alignment import align_frame_prior
+from nicer_stream.types import Intrinsics
 
 
 @dataclass(frozen=True)
@@ -52,17 +53,27 @@ def relative_pose(first: MapFrame, second: MapFrame, max_points: int = 5000, thr
     ids = np.random.default_rng(seed).permutation(ids)[:max_points]
     uv0 = pixel_grid(first.intr).reshape(-1, 2).cpu().numpy()[ids].astype(np.float64)
     uv1 = uv0 + flow.reshape(-1, 2).cpu().numpy()[ids].astype(np.float64)
-    n0 = camera_dirs(torch.from_numpy(uv0), first.intr)[:, :2].numpy()  # normalised image coordinates
-    n1 = camera_dirs(torch.from_numpy(uv1), second.intr)[:, :2].numpy()
-    E, mask = cv2.findEssentialMat(n0, n1, np.eye(3), cv2.RANSAC, 0.999, thresh_px / first.intr.fx)
+    rel = essential_pose(uv0, uv1, first.intr, thresh_px, 100)
+    return None if rel is None else (rel[0], rel[1])
+
+
+def essential_pose(uv0: np.ndarray, uv1: np.ndarray, intr: Intrinsics, thresh_px: float,
+                   min_inliers: int) -> tuple[np.ndarray, int, np.ndarray] | None:
+    """T_world_cam (4, 4) float64 of a second view with the first at the identity and a unit
+    baseline, from pixel matches uv0 -> uv1 (N, 2) by the essential matrix (RANSAC at
+    `thresh_px`); with the inlier count and the (N,) bool inlier mask. None with fewer than
+    `min_inliers` inliers."""
+    n0 = camera_dirs(torch.from_numpy(uv0), intr)[:, :2].numpy()  # normalised image coordinates
+    n1 = camera_dirs(torch.from_numpy(uv1), intr)[:, :2].numpy()
+    E, mask = cv2.findEssentialMat(n0, n1, np.eye(3), cv2.RANSAC, 0.999, thresh_px / intr.fx)
     if E is None or E.shape != (3, 3):
         return None
     n_in, R, t, mask = cv2.recoverPose(E, n0, n1, np.eye(3), mask=mask)
-    if n_in < 100:
+    if n_in < min_inliers:
         return None
     T_second_first = np.eye(4)
     T_second_first[:3, :3], T_second_first[:3, 3] = R, t[:, 0]
-    return np.linalg.inv(T_second_first), int(n_in)
+    return np.linalg.inv(T_second_first), int(n_in), mask[:, 0] > 0
 
 
 def two_view_init(first: MapFrame, second: MapFrame, median_m: float) -> TwoView | None:
