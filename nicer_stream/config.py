@@ -232,12 +232,15 @@ class TrackingConfig:
 class FrontendConfig:
     """The classical frontend (`tracking.frontend = 'classical'`, `nicer_stream/frontend/`)."""
 
+    features: str = "sift"
+    """'sift': SIFT keypoints matched to each track's latest descriptor; 'klt': Shi-Tomasi
+    corners followed by pyramidal Lucas-Kanade (drifts on smooth texture: `frontend/sift.py`)."""
     corners: int = 400
-    """Features kept alive (Shi-Tomasi corners tracked by pyramidal Lucas-Kanade)."""
+    """Features per frame (SIFT keypoints, or KLT corners kept alive)."""
     min_distance_px: float = 8.0
-    """Minimum spacing of corners, pixels."""
+    """KLT: minimum spacing of corners, pixels."""
     fb_px: float = 1.0
-    """A track survives a frame when tracking back lands within this many pixels."""
+    """KLT: a track survives a frame when tracking back lands within this many pixels."""
     window: int = 40
     """Frames whose observations are kept (landmarks no frame in it sees are dropped)."""
     min_parallax_deg: float = 1.0

@@ -9,7 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from nicer_stream.config import FrontendConfig
-from nicer_stream.frontend.klt import detect_corners, to_grey_u8, track
+from nicer_stream.frontend.klt import KltTracks, to_grey_u8
+from nicer_stream.frontend.sift import SiftTracks
 from nicer_stream.frontend.local_ba import bundle_adjust
 from nicer_stream.frontend.triangulate import project, triangulate
 from nicer_stream.slam.two_view import essential_pose
@@ -39,10 +40,10 @@ class ClassicalFrontend:
     def __init__(self, cfg: FrontendConfig) -> None:
         self.cfg = cfg
         self.intr: Intrinsics | None = None
-        self.prev: np.ndarray | None = None
-        self.ids = np.zeros(0, np.int64)  # tracks alive in the latest frame
-        self.uv = np.zeros((0, 2), np.float32)
-        self.next_id = 0
+        if cfg.features == "sift":
+            self.tracks: SiftTracks | KltTracks = SiftTracks(cfg.corners)
+        else:
+            self.tracks = KltTracks(cfg.corners, cfg.min_distance_px, cfg.fb_px)
         self.obs: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # frame -> (track ids, pixels)
         self.poses: dict[int, np.ndarray] = {}  # trusted poses of observed frames
         self.landmarks: dict[int, np.ndarray] = {}  # track id -> world point (3,)
@@ -52,19 +53,9 @@ class ClassicalFrontend:
 
     # -- every frame ---------------------------------------------------------------
     def observe(self, index: int, rgb: np.ndarray, intr: Intrinsics) -> None:
-        """Track the live features into this frame and top them up with new corners."""
-        grey = to_grey_u8(rgb)
-        if self.prev is not None and self.prev.shape == grey.shape:
-            uv, ok = track(self.prev, grey, self.uv, self.cfg.fb_px)
-            self.ids, self.uv = self.ids[ok], uv[ok]
-        else:
-            self.ids, self.uv = np.zeros(0, np.int64), np.zeros((0, 2), np.float32)
-        new = detect_corners(grey, self.cfg.corners - len(self.ids), self.cfg.min_distance_px, self.uv)
-        self.ids = np.concatenate([self.ids, np.arange(self.next_id, self.next_id + len(new))])
-        self.uv = np.concatenate([self.uv, new])
-        self.next_id += len(new)
-        self.prev, self.intr = grey, intr
-        self.obs[index] = (self.ids.copy(), self.uv.astype(np.float64))
+        """Follow the features into this frame (`cfg.features`: SIFT matches or KLT tracks)."""
+        self.intr = intr
+        self.obs[index] = self.tracks.step(to_grey_u8(rgb))
         for k in sorted(self.obs)[: max(0, len(self.obs) - self.cfg.window)]:
             del self.obs[k]
             self.poses.pop(k, None)

@@ -39,3 +39,29 @@ def track(prev: np.ndarray, cur: np.ndarray, pts: np.ndarray, fb_px: float = 1.0
     ok = (st1[:, 0] == 1) & (st2[:, 0] == 1) & (np.linalg.norm(p0b[:, 0] - p0[:, 0], axis=1) < fb_px)
     ok &= (p1[:, 0] >= 0) & (p1[:, 0] <= w - 1) & (p1[:, 1] >= 0) & (p1[:, 1] <= h - 1)
     return p1, ok
+
+
+class KltTracks:
+    """Track ids and pixels through the frames: Shi-Tomasi corners followed by pyramidal LK,
+    topped up with new corners each frame. Call `step` on every frame in input order."""
+
+    def __init__(self, corners: int, min_distance_px: float, fb_px: float) -> None:
+        self.corners, self.min_distance_px, self.fb_px = corners, min_distance_px, fb_px
+        self.prev: np.ndarray | None = None
+        self.ids = np.zeros(0, np.int64)
+        self.uv = np.zeros((0, 2), np.float32)
+        self.next_id = 0
+
+    def step(self, grey: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(H, W) uint8 -> (track ids (M,) int64, pixels (M, 2) float64) of this frame."""
+        if self.prev is not None and self.prev.shape == grey.shape:
+            uv, ok = track(self.prev, grey, self.uv, self.fb_px)
+            self.ids, self.uv = self.ids[ok], uv[ok]
+        else:
+            self.ids, self.uv = np.zeros(0, np.int64), np.zeros((0, 2), np.float32)
+        new = detect_corners(grey, self.corners - len(self.ids), self.min_distance_px, self.uv)
+        self.ids = np.concatenate([self.ids, np.arange(self.next_id, self.next_id + len(new))])
+        self.uv = np.concatenate([self.uv, new])
+        self.next_id += len(new)
+        self.prev = grey
+        return self.ids.copy(), self.uv.astype(np.float64)

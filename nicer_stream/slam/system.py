@@ -67,6 +67,8 @@ class SlamSystem:
             raise UserError(f"mapping.init must be first_frame or two_view, got {cfg.mapping.init!r}")
         if cfg.tracking.frontend not in ("classical", "none"):
             raise UserError(f"tracking.frontend must be classical or none, got {cfg.tracking.frontend!r}")
+        if cfg.frontend.features not in ("sift", "klt"):
+            raise UserError(f"frontend.features must be sift or klt, got {cfg.frontend.features!r}")
         self.cfg, self.device = cfg, torch.device(device)
         self.progress = progress
         self.rng = random.Random(cfg.seed)
