@@ -12,7 +12,7 @@ NS=.venv/bin/nicer-stream
 REPLICA=replica:../shared/data/replica_room0_20f
 OUT=${2:-runs/bench}
 t() { /usr/bin/time -f "wall %e s, peak RSS %M KB" "$@"; }
-# speedup_run TREE OUTDIR: `nicer-stream run` of the code in TREE (not the editable install),
+# speedup_run TREE OUTDIR PRIORS: `nicer-stream run` of the code in TREE (not the editable install),
 # timed into OUTDIR/time.txt (read by speedup_table.py).
 speedup_run() {
   local tree=$1 dir=$2 root=$PWD py=$PWD/.venv/bin/python
@@ -25,7 +25,7 @@ sys.exit(f"imported from outside {sys.argv[1]}: {bad}" if bad else 0)' "$tree")
   echo "== $(git -C "$tree" rev-parse --short HEAD) ($tree) -> $dir"
   # shellcheck disable=SC2086  # EXTRA is split into arguments on purpose
   (cd "$tree" && PYTHONPATH="$tree" /usr/bin/time -f "%e %M" -o "$dir/time.txt" $py -m nicer_stream.cli.main run \
-     --source "replica:$root/../shared/data/replica_room0_20f" --priors oracle --preset fast --out "$dir" ${EXTRA:-})
+     --source "replica:$root/../shared/data/replica_room0_20f" --priors "$3" --preset fast --out "$dir" ${EXTRA:-})
   echo "wall $(cut -d' ' -f1 "$dir/time.txt") s, peak RSS $(cut -d' ' -f2 "$dir/time.txt") KB"
 }
 case "${1:-all}" in
@@ -55,8 +55,9 @@ case "${1:-all}" in
   street)    # issue 17: the synthetic street, 100 frames, without priors, frontend on (PRIORS= to change)
              mkdir -p $OUT && printf '[tracking]\nfrontend = "classical"\n' > $OUT/frontend.toml
              t $NS run --source "synthetic:street?frames=100" --priors ${PRIORS:-none} --preset fast --config $OUT/frontend.toml --out $OUT/run_street_${PRIORS:-none} ;;
-  jump)      # issue 17: 5 frames removed from the middle of the Replica clip (CONFIG= a toml to add)
-             t $NS run --source $REPLICA --priors oracle --preset fast --drop 8:13 ${CONFIG:+--config $CONFIG} --out $OUT/run_jump ;;
+  jump)      # issue 17: 5 frames removed from the middle of the Replica clip (CONFIG= a toml to add;
+             # SOURCE=synthetic:room?frames=40 DROP=18:23 for the demo room)
+             t $NS run --source "${SOURCE:-$REPLICA}" --priors oracle --preset fast --drop "${DROP:-8:13}" ${CONFIG:+--config $CONFIG} --out $OUT/run_jump ;;
   run-synth) t $NS run --source "synthetic:room?frames=100" --priors oracle --preset fast --out $OUT/run_synth ;;
   iters)     # per-iteration costs (mapping, tracking) with FLOPs and sgemm: BASE's code at fast sizes
              # (needs the worktree of `speedup`), then this tree at fast and paper sizes
@@ -71,9 +72,10 @@ case "${1:-all}" in
              else
                git worktree add -q --detach "$wt" "$base"
              fi
-             speedup_run "$wt" "$out/speedup_base"
+             # The baseline's `oracle` is what this tree calls `oracle:clean` (near-GT priors, GT flow).
+             speedup_run "$wt" "$out/speedup_base" oracle
              new=$(git rev-parse --short HEAD)$([ -z "$(git status --porcelain)" ] || echo +edits)
-             speedup_run "$PWD" "$out/speedup_new"
+             speedup_run "$PWD" "$out/speedup_new" oracle:clean
              .venv/bin/python scripts/speedup_table.py "$out/speedup_base" "$out/speedup_new" \
                --labels "$(git rev-parse --short "$base")" "$new" ;;
   *) echo "usage: [BASE=commit] [EXTRA=args] $0 map|map-none|map-paper|map-synth|run|run-seeds|run-none|run10|run10-paper|run-synth|flow|speedup|iters [OUTROOT]"; exit 2 ;;

@@ -57,7 +57,7 @@ def flops_per_iteration(cfg, rays: int, n_probe: int, n_grad: int, eikonal: int,
 def load(n_frames: int, max_side: int):
     src = open_source(REPLICA, SourceOptions(max_side=max_side, max_frames=n_frames))
     frames = list(src)
-    engine = make_engine("oracle", None, "cpu")
+    engine = make_engine("oracle:clean", None, "cpu")
     mfs = [map_frame(f, engine, [frames[j] for j in (i - 2, i + 2) if 0 <= j < len(frames)], "cpu")
            for i, f in enumerate(frames)]
     poses = {f.index: torch.tensor(f.gt_pose, dtype=torch.float32) for f in frames}

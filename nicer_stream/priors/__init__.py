@@ -1,6 +1,7 @@
 """Monocular prior providers (depth + normal, optical flow) addressed by name.
 
-Depth/normal: `none`, `oracle` (from GT, evaluation only), `cache:DIR`,
+Depth/normal: `none`, `oracle` (from GT with a monocular network's errors, evaluation
+only), `oracle:clean` (nearly GT, debugging only), `cache:DIR`,
 `omnidata[:PATH_OR_HUB]`, `depth-anything[:MODEL_ID_OR_PATH]`.
 Flow: `dis` (default), `none`, `oracle`, `raft`, `cache:DIR`.
 Network providers import their heavy dependencies only when chosen.
@@ -19,7 +20,7 @@ from nicer_stream.priors.base import (
     PriorEngine,
 )
 
-DEPTH_NORMAL_PROVIDERS = ("none", "oracle", "cache:DIR", "omnidata[:PATH_OR_HUB]", "depth-anything[:MODEL_ID_OR_PATH]")
+DEPTH_NORMAL_PROVIDERS = ("none", "oracle", "oracle:clean", "cache:DIR", "omnidata[:PATH_OR_HUB]", "depth-anything[:MODEL_ID_OR_PATH]")
 FLOW_PROVIDERS = ("dis", "none", "oracle", "raft", "cache:DIR")
 DEFAULT_FLOW = "dis"
 
@@ -46,10 +47,10 @@ def make_depth_normal_provider(name: str, device: str | torch.device = "cpu") ->
     kind, arg = _split(name)
     if kind == "none" and not arg:
         return NoDepthNormal()
-    if kind == "oracle" and not arg:
-        from nicer_stream.priors.oracle import OracleDepthNormal
+    if kind == "oracle" and arg in ("", "clean"):
+        from nicer_stream.priors.oracle import OracleCorruption, OracleDepthNormal
 
-        return OracleDepthNormal()
+        return OracleDepthNormal(corruption=OracleCorruption.clean() if arg else OracleCorruption())
     if kind == "cache":
         from nicer_stream.priors.cache import CacheDepthNormal
 

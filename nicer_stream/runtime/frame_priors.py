@@ -10,8 +10,9 @@ from nicer_stream.types import Frame
 
 
 def make_engine(priors: str, flow: str | None, device) -> PriorEngine:
-    """Depth/normal provider `priors`; flow defaults to `oracle` with oracle priors, else `dis`."""
-    flow = flow or ("oracle" if priors == "oracle" else "dis")
+    """Depth/normal provider `priors`; flow defaults to `oracle` with `oracle:clean` priors, else
+    `dis` (the realistic `oracle` imitates a user's priors: its flow is the default provider's)."""
+    flow = flow or ("oracle" if priors == "oracle:clean" else "dis")
     return PriorEngine(make_depth_normal_provider(priors, device), make_flow_provider(flow, device))
 
 

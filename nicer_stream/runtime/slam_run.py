@@ -148,6 +148,8 @@ def run_slam(req: RunRequest) -> Path:
             sink.log_beta_voxels(world, betas.cpu().numpy(), 2 * slam.model.bound.half_extent / slam.cfg.render.beta_voxels)
             sink.close()
     notes = [f"scene bound from {slam.bound.source}"]
+    if getattr(engine.depth_normal, "description", None):
+        notes.append(f"priors: {engine.depth_normal.description}")
     if slam.scale_rule:
         how = slam.init_note or "its shift from the normal prior"
         notes.append(f"metric scale: first frame's depth-prior median taken as {cfg.loss.first_depth_median_m} m; "

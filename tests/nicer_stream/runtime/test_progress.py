@@ -24,9 +24,9 @@ def test_first_call_prints_then_at_most_every_interval_and_at_the_end():
 
 
 def test_run_reports_every_mapping_call_on_stderr(tmp_path, tiny_config, capsys):
-    # 3 frames with oracle priors: held for the two-view start until the end, which starts
+    # 3 frames with near-GT priors (oracle:clean, GT flow): held for the two-view start until the end, which starts
     # from frames 0 and 2; then the closing call.
-    run_slam(RunRequest(source="synthetic:room?frames=3", out_dir=tmp_path / "out", priors="oracle",
+    run_slam(RunRequest(source="synthetic:room?frames=3", out_dir=tmp_path / "out", priors="oracle:clean",
                         config_file=str(tiny_config)))
     cap = capsys.readouterr()
     assert cap.out.splitlines()[0].startswith("opening synthetic:room?frames=3 ")

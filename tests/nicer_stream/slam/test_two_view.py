@@ -4,7 +4,7 @@ import torch
 
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.priors import PriorEngine
-from nicer_stream.priors.oracle import OracleDepthNormal, OracleFlow
+from nicer_stream.priors.oracle import OracleCorruption, OracleDepthNormal, OracleFlow
 from nicer_stream.slam.two_view import relative_pose, two_view_init
 from sources import open_source
 from sources.base import SourceOptions
@@ -12,7 +12,7 @@ from sources.base import SourceOptions
 
 def _pair(k=10, side=160):
     frames = list(open_source("synthetic:room?frames=12", SourceOptions(max_side=side)))
-    eng = PriorEngine(OracleDepthNormal(), OracleFlow())
+    eng = PriorEngine(OracleDepthNormal(corruption=OracleCorruption.clean()), OracleFlow())  # exact affine: the closed form is checked
     f0, fk = frames[0], frames[k]
     m0 = MapFrame.from_frame(f0.without_ground_truth(), eng.priors(f0, [fk]), torch.device("cpu"))
     mk = MapFrame.from_frame(fk.without_ground_truth(), eng.priors(fk, [f0]), torch.device("cpu"))
