@@ -13,7 +13,7 @@ def run_command(
     out: Path = typer.Option(Path("runs/latest"), "--out", help="Output directory."),
     preset: str = typer.Option("fast", "--preset", help="fast (2-core CPU) or paper."),
     config: str = typer.Option(None, "--config", help="A .toml/.json file overriding preset fields."),
-    priors: str = typer.Option("none", "--priors", help="Depth/normal priors: none, oracle (GT with a monocular network's errors, evaluation only), oracle:clean (near GT, debugging), cache:DIR, omnidata, depth-anything."),
+    priors: str = typer.Option("auto", "--priors", help="Depth/normal priors: auto (learned weights if present, else stereo), stereo, none, oracle (GT with a monocular network's errors, evaluation only), oracle:clean (near GT, debugging), cache:DIR, omnidata, depth-anything."),
     flow: str = typer.Option(None, "--flow", help="Flow prior: dis, oracle, none, cache:DIR (default: oracle with oracle:clean priors, else dis)."),
     sink: list[str] = typer.Option([], "--sink", help="rerun (viewer), rerun:FILE.rrd, mcap:FILE.mcap; repeatable. A bare 'rerun' with no viewer writes OUT/recording.rrd."),
     max_frames: int = typer.Option(None, "--max-frames"),

@@ -42,6 +42,7 @@ class StageSeconds:
     """The classical frontend (KLT, PnP, triangulation, local BA): part of `tracking`."""
     mapping: float = 0.0
     priors: float = 0.0
+    """Prior providers, and with `--priors stereo` the plane sweeps inside the SLAM."""
     sinks: float = 0.0
 
 

@@ -44,7 +44,9 @@ def mapping_terms(out: RenderOutput, layout: list[FrameRays], cfg: LossConfig,
             depth.append(mono_depth_loss(d, prior, (prior > 0) & torch.isfinite(prior), fixed))
         if f.normal_prior is not None:
             n_cam = out.normal[sl] @ fr.T_world_cam[:3, :3]  # R^T n in row form
-            l1, ang = normal_loss(n_cam, f.normal_prior.reshape(-1, 3)[fr.pix])
+            n_prior = f.normal_prior.reshape(-1, 3)[fr.pix]
+            # Zero normals are unknown (stereo priors leave them where the depth is not confident).
+            l1, ang = normal_loss(n_cam, n_prior, n_prior.abs().sum(-1) > 0)
             n_l1.append(l1)
             n_ang.append(ang)
         partners = _warp_partners(fr, layout, cfg.warp_frames, rng or random.Random(0)) if (cfg.weights.warp > 0 or cfg.weights.flow > 0) else []

@@ -1,7 +1,9 @@
 """Monocular prior providers (depth + normal, optical flow) addressed by name.
 
-Depth/normal: `none`, `oracle` (from GT with a monocular network's errors, evaluation
-only), `oracle:clean` (nearly GT, debugging only), `cache:DIR`,
+Depth/normal: `auto` (a learned provider whose weights are on this machine, else `stereo`),
+`none`, `oracle` (from GT with a monocular network's errors, evaluation
+only), `oracle:clean` (nearly GT, debugging only), `stereo` (plane sweep between keyframes
+with the SLAM's poses: no GT, no weights; `run` only), `cache:DIR`,
 `omnidata[:PATH_OR_HUB]`, `depth-anything[:MODEL_ID_OR_PATH]`.
 Flow: `dis` (default), `none`, `oracle`, `raft`, `cache:DIR`.
 Network providers import their heavy dependencies only when chosen.
@@ -20,7 +22,7 @@ from nicer_stream.priors.base import (
     PriorEngine,
 )
 
-DEPTH_NORMAL_PROVIDERS = ("none", "oracle", "oracle:clean", "cache:DIR", "omnidata[:PATH_OR_HUB]", "depth-anything[:MODEL_ID_OR_PATH]")
+DEPTH_NORMAL_PROVIDERS = ("auto", "none", "stereo", "oracle", "oracle:clean", "cache:DIR", "omnidata[:PATH_OR_HUB]", "depth-anything[:MODEL_ID_OR_PATH]")
 FLOW_PROVIDERS = ("dis", "none", "oracle", "raft", "cache:DIR")
 DEFAULT_FLOW = "dis"
 
@@ -45,8 +47,19 @@ def _cache_dir(arg: str, name: str) -> str:
 def make_depth_normal_provider(name: str, device: str | torch.device = "cpu") -> DepthNormalProvider:
     """Depth/normal provider named `name` (see DEPTH_NORMAL_PROVIDERS); models go to `device`."""
     kind, arg = _split(name)
+    if kind == "auto" and not arg:
+        from nicer_stream.priors.auto import choose
+
+        chosen, reason = choose()
+        provider = make_depth_normal_provider(chosen, device)
+        provider.auto_reason = reason
+        return provider
     if kind == "none" and not arg:
         return NoDepthNormal()
+    if kind == "stereo" and not arg:
+        from nicer_stream.priors.stereo import StereoDepthNormal
+
+        return StereoDepthNormal()
     if kind == "oracle" and arg in ("", "clean"):
         from nicer_stream.priors.oracle import OracleCorruption, OracleDepthNormal
 

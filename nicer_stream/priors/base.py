@@ -31,6 +31,10 @@ class DepthNormalProvider:
     """Predicts a DepthNormal for a frame. `name` labels the outputs (e.g. 'oracle')."""
 
     name: str = "abstract"
+    description: str | None = None
+    """One line for outputs: what the provider is (and how honest), when it is worth saying."""
+    auto_reason: str | None = None
+    """Set when `--priors auto` chose this provider: why."""
 
     def predict(self, frame: Frame) -> DepthNormal:  # pragma: no cover - abstract
         raise NotImplementedError

@@ -93,6 +93,8 @@ def _bound(cfg, mfs, aligned, poses, poses_np) -> SceneBound:
 
 def run_map(req: MapRequest) -> Path:
     cfg = config_mod.load(req.preset, req.config_file)
+    if req.priors == "stereo":
+        raise UserError("--priors stereo needs the SLAM's poses: use `nicer-stream run` (map takes per-frame priors)")
     timer = StageTimer()
     torch.manual_seed(cfg.seed)
     source, _ = open_configured(req.source, req.source_opts, cfg)

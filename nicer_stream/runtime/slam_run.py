@@ -13,6 +13,7 @@ import torch
 from nicer_stream import config as config_mod
 from nicer_stream.errors import UserError
 from nicer_stream.runtime.checkpoint import save_scene
+from nicer_stream.priors.stereo import StereoParams
 from nicer_stream.runtime.frame_priors import make_engine, provider_names
 from nicer_stream.runtime.pacer import Pacer
 from nicer_stream.runtime.prior_stage import PriorStage
@@ -38,7 +39,7 @@ class RunRequest:
 
     source: str
     out_dir: Path
-    priors: str = "oracle"
+    priors: str = "auto"
     flow: str | None = None
     preset: str = "fast"
     config_file: str | None = None
@@ -59,8 +60,11 @@ def run_slam(req: RunRequest) -> Path:
     out = Path(req.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     engine = make_engine(req.priors, req.flow, req.device)
+    if engine.depth_normal.auto_reason:
+        print(engine.depth_normal.auto_reason, flush=True)
     stage = PriorStage(engine)
-    slam = SlamSystem(cfg, req.device, progress=lambda label: Progress(label, MAPPING_PROGRESS_EVERY_S))
+    slam = SlamSystem(cfg, req.device, progress=lambda label: Progress(label, MAPPING_PROGRESS_EVERY_S),
+                      stereo=StereoParams() if engine.depth_normal.name == "stereo" else None)
     from sinks import make_sink
 
     sink = make_sink(list(req.sinks)) if req.sinks else None
@@ -127,6 +131,9 @@ def run_slam(req: RunRequest) -> Path:
     if last is not None:  # the last frame is always rendered, as in `map`
         kept[last[0]] = last[1]
     timer.seconds.frontend = slam.frontend_seconds
+    if slam.stereo is not None:  # computed inside SLAM calls (booked as tracking): a prior stage
+        timer.seconds.tracking -= slam.stereo.seconds
+        timer.seconds.priors += slam.stereo.seconds
     times, poses = slam.trajectory()
     print(f"writing outputs: {sum(v is not None for v in kept.values())} renders and the mesh", flush=True)
     save_scene(out, cfg, slam.model, slam.beta)
@@ -148,7 +155,9 @@ def run_slam(req: RunRequest) -> Path:
             sink.log_beta_voxels(world, betas.cpu().numpy(), 2 * slam.model.bound.half_extent / slam.cfg.render.beta_voxels)
             sink.close()
     notes = [f"scene bound from {slam.bound.source}"]
-    if getattr(engine.depth_normal, "description", None):
+    if engine.depth_normal.auto_reason:
+        notes.append(engine.depth_normal.auto_reason)
+    if engine.depth_normal.description:
         notes.append(f"priors: {engine.depth_normal.description}")
     if slam.scale_rule:
         how = slam.init_note or "its shift from the normal prior"

@@ -23,10 +23,12 @@ from nicer_stream.mapping.mapper import Mapper
 from nicer_stream.mapping.prior_alignment import align_prior_to_map, align_to_widest_partner
 from nicer_stream.model.bound import SceneBound, bound_from_points
 from nicer_stream.model.scene import SceneModel
+from nicer_stream.priors.stereo import StereoParams
 from nicer_stream.render.beta import BetaField
 from nicer_stream.runtime.bound_estimate import bound_from_config, bound_from_depth
 from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpdated
 from nicer_stream.slam.motion import frontend_disagreement, predict_pose, tracking_failure
+from nicer_stream.slam.stereo_priors import StereoPriors
 from nicer_stream.slam.two_view import TwoView, two_view_init
 from nicer_stream.slam.window import ba_frames, select_window
 from nicer_stream.tracking.flow_init import pose_from_flows
@@ -58,7 +60,8 @@ class SlamSystem:
     returns the callback that call reports its iterations to; the caller does the printing."""
 
     def __init__(self, cfg: SlamConfig, device: str = "cpu",
-                 progress: Callable[[str], MappingProgress | None] | None = None) -> None:
+                 progress: Callable[[str], MappingProgress | None] | None = None,
+                 stereo: StereoParams | None = None) -> None:
         if cfg.loss.slam_prior_alignment not in ("lstsq", "map", "flow"):
             raise UserError(f"loss.slam_prior_alignment must be lstsq, map or flow, got {cfg.loss.slam_prior_alignment!r}")
         if cfg.tracking.init not in ("previous", "constant_velocity", "flow"):
@@ -70,6 +73,8 @@ class SlamSystem:
         if cfg.frontend.features not in ("sift", "klt"):
             raise UserError(f"frontend.features must be sift or klt, got {cfg.frontend.features!r}")
         self.cfg, self.device = cfg, torch.device(device)
+        # `--priors stereo`: keyframe depth/normal priors by plane sweep before each mapping call.
+        self.stereo = StereoPriors(stereo) if stereo is not None else None
         self.progress = progress
         self.rng = random.Random(cfg.seed)
         self.model: SceneModel | None = None
@@ -220,6 +225,9 @@ class SlamSystem:
         self.tracker = Tracker(self.model, self.beta, cfg.tracking, cfg.render, cfg.seed)
         self.frames[mf.index] = mf
         window = [mf] if second is None else [mf, second]
+        if self.stereo is not None:
+            idx = [f.index for f in window]
+            self.stereo.update(idx, {f.index: f for f in window}, self.poses, idx, self.bound)
         # One long call from the sphere, like `map`: the colour grids join early.
         label = f"first mapping (frame{'s' if second else ''} {','.join(str(f.index) for f in window)})"
         stats = self.mapper.optimise(window, self.poses, cfg.mapping.first_iters,
@@ -342,6 +350,8 @@ class SlamSystem:
         window = select_window(self.keyframes, current, self.cfg.mapping, self.rng)
         anchor = self.order[0]
         ba = ba_frames(window, current, anchor) if bundle_adjust and self.cfg.mapping.ba_start < 1.0 else set()
+        if self.stereo is not None:
+            self.stereo.update(window, self.frames, self.poses, self.keyframes, self.bound)
         mode = self.cfg.loss.slam_prior_alignment
         if mode == "map":
             for k in window:
@@ -360,6 +370,8 @@ class SlamSystem:
         (the widest-baseline partner it has a flow to); frames without one keep the fit."""
         for k in window:
             f = self.frames[k]
+            if self.stereo is not None and k in self.stereo.used:
+                continue  # stereo depth is in the poses' unit already: (1, 0)
             wq = align_to_widest_partner(f, self.frames, self.poses)
             f.depth_scale_shift = wq if wq is not None else f.depth_scale_shift
 

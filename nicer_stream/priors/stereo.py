@@ -1,0 +1,147 @@
+"""Dense depth from posed images alone: plane-sweep multi-view stereo (no ground truth, no weights).
+
+For a reference image and one or more partner images with known T_world_cam poses, every
+fronto-parallel plane z = d of the reference camera maps the reference pixels into a partner by
+the homography H(d) = K (R + t n^T / d) K^-1 (R, t: reference camera to partner camera,
+n = (0, 0, 1)). The partner warped by H(d) is compared with the reference by zero-mean
+normalised cross-correlation (ZNCC) in a small window; the plane with the lowest cost wins, and
+a parabola through its neighbours refines it between planes. Planes are uniform in inverse depth,
+about one pixel of disparity apart for the widest baseline.
+
+Why plane sweep rather than rectified two-view matching: it needs no rectification, so it works
+for any motion (forward motion puts the epipole inside the image, where rectification breaks),
+and it takes several partners at once: a pixel occluded in one partner uses the other (the
+cost is the minimum over partners).
+
+A pixel is confident when its window has texture, its best ZNCC is high, the partners that
+see it agree on the plane, and the best plane is not at an end of the range. Unconfident
+pixels get depth 0.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from nicer_stream.priors.base import DepthNormal, DepthNormalProvider
+from nicer_stream.types import Frame, Intrinsics
+
+
+@dataclass(frozen=True)
+class StereoParams:
+    """Plane-sweep settings."""
+
+    window: int = 9
+    """ZNCC window side, pixels (odd)."""
+    min_planes: int = 48
+    """At least this many depth planes."""
+    max_planes: int = 160
+    """At most this many (cost grows linearly with them)."""
+    min_texture: float = 0.005
+    """A window whose grey-level std (0..1 units) is below this is untextured: not confident."""
+    min_ncc: float = 0.9
+    """The best ZNCC must reach this."""
+    min_uniqueness: float = 0.0
+    """The runner-up plane (2+ planes away) must cost this much more than the best."""
+    max_plane_disagreement: int = 2
+    """Partners that see a pixel must each put their own best plane within this many planes
+    of the joint best."""
+
+
+def grey(rgb: np.ndarray) -> np.ndarray:
+    """(H, W, 3) float RGB in [0, 1] -> (H, W) float32 luminance."""
+    return cv2.cvtColor(np.ascontiguousarray(rgb, dtype=np.float32), cv2.COLOR_RGB2GRAY)
+
+
+def plane_homography(K: np.ndarray, T_partner_ref: np.ndarray, depth: float) -> np.ndarray:
+    """(3, 3) map of reference pixels (homogeneous) to partner pixels for the plane z = depth
+    of the reference camera. T_partner_ref (4, 4): reference camera to partner camera."""
+    R, t = T_partner_ref[:3, :3], T_partner_ref[:3, 3:4]
+    n = np.array([[0.0, 0.0, 1.0]])
+    return K @ (R + t @ n / depth) @ np.linalg.inv(K)
+
+
+def _box(x: np.ndarray, w: int) -> np.ndarray:
+    return cv2.boxFilter(x, -1, (w, w), normalize=True, borderType=cv2.BORDER_REFLECT)
+
+
+def zncc(a: np.ndarray, mean_a: np.ndarray, std_a: np.ndarray, b: np.ndarray, w: int) -> np.ndarray:
+    """Windowed ZNCC (H, W) of images a and b; a's window mean and std given (computed once)."""
+    mean_b = _box(b, w)
+    var_b = np.maximum(_box(b * b, w) - mean_b * mean_b, 0.0)
+    cov = _box(a * b, w) - mean_a * mean_b
+    return cov / np.maximum(std_a * np.sqrt(var_b), 1e-6)
+
+
+def plane_count(intr: Intrinsics, baselines: list[float], near: float, far: float, p: StereoParams) -> int:
+    """Planes ~1 px of disparity apart for the widest baseline, clipped to [min, max]."""
+    span_px = max(intr.fx, intr.fy) * max(baselines) * (1.0 / near - 1.0 / far)
+    return int(np.clip(np.ceil(span_px), p.min_planes, p.max_planes))
+
+
+def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tuple[np.ndarray, np.ndarray]],
+                intr: Intrinsics, near: float, far: float,
+                params: StereoParams = StereoParams()) -> tuple[np.ndarray, np.ndarray]:
+    """Plane-sweep depth of the reference image.
+
+    ref_rgb (H, W, 3) float [0, 1]; T_world_ref (4, 4) T_world_cam; partners: (rgb (H, W, 3),
+    T_world_cam (4, 4)) pairs, same intrinsics `intr`; near < far: the z-depth range searched,
+    in the poses' unit. Returns (z-depth (H, W) float32 in the poses' unit, 0 where not
+    confident; best ZNCC (H, W) float32)."""
+    if not partners:
+        raise ValueError("plane sweep needs at least one partner image")
+    w, (h, wd) = params.window, ref_rgb.shape[:2]
+    K = intr.matrix()
+    a = grey(ref_rgb)
+    mean_a = _box(a, w)
+    std_a = np.sqrt(np.maximum(_box(a * a, w) - mean_a * mean_a, 0.0))
+    rel = [np.linalg.inv(T) @ T_world_ref for _, T in partners]
+    n = plane_count(intr, [float(np.linalg.norm(T[:3, 3])) for T in rel], near, far, params)
+    inv_d = np.linspace(1.0 / near, 1.0 / far, n)
+    greys = [grey(rgb) for rgb, _ in partners]
+    ones = np.ones((h, wd), np.float32)
+    # Cost 1 - ZNCC per partner and plane; 2 (worse than any match) where a window is not
+    # wholly inside the partner's image.
+    costs = np.full((len(partners), n, h, wd), 2.0, np.float32)
+    for i, d in enumerate(1.0 / inv_d):
+        for j, (g, T) in enumerate(zip(greys, rel)):
+            H = plane_homography(K, T, d)
+            warped = cv2.warpPerspective(g, H, (wd, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
+            inside = _box(cv2.warpPerspective(ones, H, (wd, h), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP), w) > 0.999
+            costs[j, i] = np.where(inside, 1.0 - zncc(a, mean_a, std_a, warped, w), 2.0)
+    cost = costs.min(0)  # occluded or outside in one partner: the other decides
+    k = np.argmin(cost, axis=0)
+    rows, cols = np.indices((h, wd))
+    c0 = cost[k, rows, cols]
+    # Partners that see the pixel at its depth must each prefer (nearly) the same plane: on a
+    # blank wall every depth matches and the partners' choices scatter.
+    agree = np.ones((h, wd), bool)
+    if len(partners) > 1:
+        for cj in costs:
+            seen = cj[k, rows, cols] < 2.0
+            agree &= ~seen | (np.abs(np.argmin(cj, axis=0) - k) <= params.max_plane_disagreement)
+    # Parabola through the best plane and its neighbours: sub-plane inverse depth.
+    km, kp = np.clip(k - 1, 0, n - 1), np.clip(k + 1, 0, n - 1)
+    cm, cp = cost[km, rows, cols], cost[kp, rows, cols]
+    denom = cm - 2 * c0 + cp
+    off = np.where((k > 0) & (k < n - 1) & (denom > 1e-9), 0.5 * (cm - cp) / np.maximum(denom, 1e-9), 0.0)
+    step = inv_d[1] - inv_d[0] if n > 1 else 0.0
+    depth = 1.0 / (inv_d[k] + np.clip(off, -0.5, 0.5) * step)
+    # Runner-up: the lowest cost at least 2 planes from the best.
+    planes = np.arange(n)[:, None, None]
+    far_cost = np.where(np.abs(planes - k[None]) >= 2, cost, np.inf).min(0)
+    ok = (std_a >= params.min_texture) & (c0 <= 1.0 - params.min_ncc) & (far_cost - c0 >= params.min_uniqueness)
+    ok &= agree & (c0 < 2.0) & (k > 0) & (k < n - 1)  # seen by a partner; not at the ends of the range
+    return np.where(ok, depth, 0.0).astype(np.float32), (1.0 - c0).astype(np.float32)
+
+
+class StereoDepthNormal(DepthNormalProvider):
+    """`--priors stereo`: nothing per frame; the SLAM computes each keyframe's depth and normals
+    by plane sweep once it has posed neighbours (`slam/stereo_priors.py`)."""
+
+    name = "stereo"
+    description = "stereo (plane-sweep depth from keyframes and the SLAM's own poses; no ground truth, no weights)"
+
+    def predict(self, frame: Frame) -> DepthNormal:
+        return DepthNormal(depth=None, normal=None)

@@ -1,0 +1,68 @@
+"""Stereo priors inside the SLAM: partner choice, normals only where depth is known, the
+keyframe priors filled in the poses' unit, and a run with no ground truth anywhere."""
+import cv2
+import numpy as np
+import torch
+
+from nicer_stream.mapping.map_frame import MapFrame
+from nicer_stream.model.bound import SceneBound
+from nicer_stream.runtime.slam_run import RunRequest, run_slam
+from nicer_stream.slam.stereo_priors import StereoPriors, partners_of, stereo_normals
+from sources import open_source
+from sources.base import SourceOptions
+
+
+def test_partners_are_the_nearest_keyframes_one_on_each_side_first():
+    assert partners_of(10, [0, 5, 15, 20]) == (5, 15)
+    assert partners_of(20, [0, 5, 10, 15]) == (10, 15)
+    assert partners_of(0, [5, 10, 15]) == (5, 10)
+    assert partners_of(0, []) == ()
+
+
+def test_stereo_normals_are_zero_where_depth_is_unknown():
+    from nicer_stream.types import Intrinsics
+
+    intr = Intrinsics(fx=50.0, fy=50.0, cx=15.5, cy=11.5, width=32, height=24)
+    d = np.full((24, 32), 2.0, np.float32)
+    d[:, :8] = 0.0
+    n = stereo_normals(d, intr)
+    assert (np.abs(n[:, :8]).sum(-1) == 0).all()
+    inner = n[4:-4, 12:-4]
+    np.testing.assert_allclose(inner[..., 2], -1.0, atol=1e-3)  # a fronto-parallel wall faces the camera
+
+
+def test_keyframe_priors_are_metric_in_the_poses_unit_and_two_sided_once_possible():
+    src = list(open_source("synthetic:room?frames=40", SourceOptions(max_frames=16)))
+    frames = {f.index: MapFrame.from_frame(f.without_ground_truth(), None, torch.device("cpu")) for f in src[::5]}
+    poses = {f.index: torch.as_tensor(f.gt_pose, dtype=torch.float32) for f in src}
+    bound = SceneBound((0.0, 0.0, 0.0), 4.0, "config")
+    sp = StereoPriors()
+    assert sp.update([0, 5], frames, poses, [0, 5], bound) == [0, 5]
+    assert sp.used == {0: (5,), 5: (0,)}
+    # A third keyframe makes 5's pair two-sided: recomputed; 0 stays (it can never be).
+    assert sp.update([0, 5, 10], frames, poses, [0, 5, 10], bound) == [5, 10]
+    assert sp.used == {0: (5,), 5: (0, 10), 10: (0, 5)}
+    assert sp.update([0, 5, 10], frames, poses, [0, 5, 10], bound) == []  # nothing new
+    f, gt = frames[5], src[5].gt_depth
+    d = f.depth_prior.numpy()
+    m = (d > 0) & (gt > 0)
+    assert m.mean() > 0.5 and np.median(np.abs(d[m] - gt[m]) / gt[m]) < 0.03
+    assert f.depth_scale_shift == (1.0, 0.0)
+    assert f.normal_prior.shape == (*gt.shape, 3)
+
+
+def test_a_source_without_any_ground_truth_runs_through_auto_to_the_end(tmp_path, tiny_config):
+    d = tmp_path / "imgs"
+    d.mkdir()
+    for f in open_source("synthetic:room?frames=40", SourceOptions(max_frames=6, stride=2)):
+        cv2.imwrite(str(d / f"{f.index:03d}.png"), cv2.cvtColor((f.rgb * 255).astype(np.uint8), cv2.COLOR_RGB2BGR))
+        k = f.intrinsics
+    (d / "intrinsics.txt").write_text(f"{k.fx} {k.fy} {k.cx} {k.cy}\n")
+    out = run_slam(RunRequest(source=f"folder:{d}", out_dir=tmp_path / "out", priors="auto",
+                              config_file=str(tiny_config)))
+    import json
+
+    s = json.loads((out / "summary.json").read_text())
+    assert s["frames"] == 6 and s["priors"][0] == "stereo"
+    assert any(n.startswith("auto chose stereo") for n in s["notes"])
+    assert len((out / "trajectory.tum").read_text().splitlines()) >= 6
