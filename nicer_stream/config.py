@@ -267,6 +267,30 @@ class FrontendConfig:
 
 
 @dataclass(frozen=True)
+class StereoConfig:
+    """`--priors stereo`: plane-sweep depth of each keyframe from its neighbouring keyframes."""
+
+    window: int = 9
+    """ZNCC window side, pixels (odd)."""
+    min_planes: int = 48
+    """At least this many depth planes."""
+    max_planes: int = 160
+    """At most this many (cost grows linearly with them)."""
+    min_texture: float = 0.005
+    """A window whose grey-level std (0..1 units) is below this is untextured: not confident."""
+    min_ncc: float = 0.9
+    """The best ZNCC must reach this."""
+    min_uniqueness: float = 0.0
+    """The runner-up plane (2+ planes away) must cost this much more than the best."""
+    max_plane_disagreement: int = 2
+    """Partners that see a pixel must each put their own best plane within this many planes
+    of the joint best."""
+    scale: str = "fixed"
+    """'fixed': the depth is in the poses' unit, its (w, q) fixed at (1, 0); 'fit': (w, q) refit
+    per frame like a monocular prior's (absorbs a keyframe pair's baseline error)."""
+
+
+@dataclass(frozen=True)
 class BoundConfig:
     """Scene bound used to normalise into [-1, 1]^3 (never from ground truth)."""
 
@@ -316,6 +340,8 @@ class SlamConfig:
     """Scene bound."""
     frontend: FrontendConfig = field(default_factory=FrontendConfig)
     """Classical frontend settings (used when `tracking.frontend = 'classical'`)."""
+    stereo: StereoConfig = field(default_factory=StereoConfig)
+    """Plane-sweep stereo priors (used with `--priors stereo`)."""
     mesh: MeshConfig = field(default_factory=MeshConfig)
     """Mesh extraction."""
     seed: int = 0

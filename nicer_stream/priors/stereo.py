@@ -19,34 +19,12 @@ pixels get depth 0.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import cv2
 import numpy as np
 
+from nicer_stream.config import StereoConfig
 from nicer_stream.priors.base import DepthNormal, DepthNormalProvider
 from nicer_stream.types import Frame, Intrinsics
-
-
-@dataclass(frozen=True)
-class StereoParams:
-    """Plane-sweep settings."""
-
-    window: int = 9
-    """ZNCC window side, pixels (odd)."""
-    min_planes: int = 48
-    """At least this many depth planes."""
-    max_planes: int = 160
-    """At most this many (cost grows linearly with them)."""
-    min_texture: float = 0.005
-    """A window whose grey-level std (0..1 units) is below this is untextured: not confident."""
-    min_ncc: float = 0.9
-    """The best ZNCC must reach this."""
-    min_uniqueness: float = 0.0
-    """The runner-up plane (2+ planes away) must cost this much more than the best."""
-    max_plane_disagreement: int = 2
-    """Partners that see a pixel must each put their own best plane within this many planes
-    of the joint best."""
 
 
 def grey(rgb: np.ndarray) -> np.ndarray:
@@ -74,7 +52,7 @@ def zncc(a: np.ndarray, mean_a: np.ndarray, std_a: np.ndarray, b: np.ndarray, w:
     return cov / np.maximum(std_a * np.sqrt(var_b), 1e-6)
 
 
-def plane_count(intr: Intrinsics, baselines: list[float], near: float, far: float, p: StereoParams) -> int:
+def plane_count(intr: Intrinsics, baselines: list[float], near: float, far: float, p: StereoConfig) -> int:
     """Planes ~1 px of disparity apart for the widest baseline, clipped to [min, max]."""
     span_px = max(intr.fx, intr.fy) * max(baselines) * (1.0 / near - 1.0 / far)
     return int(np.clip(np.ceil(span_px), p.min_planes, p.max_planes))
@@ -82,7 +60,7 @@ def plane_count(intr: Intrinsics, baselines: list[float], near: float, far: floa
 
 def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tuple[np.ndarray, np.ndarray]],
                 intr: Intrinsics, near: float, far: float,
-                params: StereoParams = StereoParams()) -> tuple[np.ndarray, np.ndarray]:
+                params: StereoConfig = StereoConfig()) -> tuple[np.ndarray, np.ndarray]:
     """Plane-sweep depth of the reference image.
 
     ref_rgb (H, W, 3) float [0, 1]; T_world_ref (4, 4) T_world_cam; partners: (rgb (H, W, 3),

@@ -13,7 +13,6 @@ import torch
 from nicer_stream import config as config_mod
 from nicer_stream.errors import UserError
 from nicer_stream.runtime.checkpoint import save_scene
-from nicer_stream.priors.stereo import StereoParams
 from nicer_stream.runtime.frame_priors import make_engine, provider_names
 from nicer_stream.runtime.pacer import Pacer
 from nicer_stream.runtime.prior_stage import PriorStage
@@ -64,7 +63,7 @@ def run_slam(req: RunRequest) -> Path:
         print(engine.depth_normal.auto_reason, flush=True)
     stage = PriorStage(engine)
     slam = SlamSystem(cfg, req.device, progress=lambda label: Progress(label, MAPPING_PROGRESS_EVERY_S),
-                      stereo=StereoParams() if engine.depth_normal.name == "stereo" else None)
+                      stereo=engine.depth_normal.name == "stereo")
     from sinks import make_sink
 
     sink = make_sink(list(req.sinks)) if req.sinks else None

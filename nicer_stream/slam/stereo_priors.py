@@ -1,8 +1,8 @@
 """`--priors stereo`: each keyframe's depth and normal priors from plane-sweep stereo with its
 neighbouring keyframes and the SLAM's own pose estimates (no ground truth, no weights).
 
-The depth is in the poses' unit, so its scale and shift are fixed at (1, 0): the map is pulled
-to the scale of its own trajectory, never to a per-frame fit. A keyframe's prior is computed
+The depth is in the poses' unit, so its scale and shift are fixed at (1, 0) (`stereo.scale =
+'fixed'`): the map is pulled to the scale of its own trajectory, never to a per-frame fit. A keyframe's prior is computed
 when a mapping call first includes it, from the keyframes nearest to it (one before and one
 after where they exist), and once more when a later neighbour makes a one-sided pair
 two-sided."""
@@ -18,7 +18,8 @@ from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.priors.normals_from_depth import normals_from_depth
 from nicer_stream.priors.oracle import fill_invalid_nearest
-from nicer_stream.priors.stereo import StereoParams, sweep_depth
+from nicer_stream.config import StereoConfig
+from nicer_stream.priors.stereo import sweep_depth
 
 
 def partners_of(k: int, candidates: list[int], n: int = 2) -> tuple[int, ...]:
@@ -54,7 +55,7 @@ def stereo_normals(depth: np.ndarray, intr) -> np.ndarray:
 class StereoPriors:
     """Fills `depth_prior`, `normal_prior` and `depth_scale_shift` of keyframes before mapping."""
 
-    def __init__(self, params: StereoParams = StereoParams()) -> None:
+    def __init__(self, params: StereoConfig = StereoConfig()) -> None:
         self.params = params
         self.used: dict[int, tuple[int, ...]] = {}  # keyframe -> partners its prior came from
         self.seconds = 0.0
@@ -89,4 +90,4 @@ class StereoPriors:
                                f.intr, near, far, self.params)
         f.depth_prior = torch.as_tensor(depth, device=f.rgb.device)
         f.normal_prior = torch.as_tensor(stereo_normals(depth, f.intr), device=f.rgb.device)
-        f.depth_scale_shift = (1.0, 0.0)
+        f.depth_scale_shift = (1.0, 0.0) if self.params.scale == "fixed" else None

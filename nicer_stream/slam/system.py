@@ -23,7 +23,6 @@ from nicer_stream.mapping.mapper import Mapper
 from nicer_stream.mapping.prior_alignment import align_prior_to_map, align_to_widest_partner
 from nicer_stream.model.bound import SceneBound, bound_from_points
 from nicer_stream.model.scene import SceneModel
-from nicer_stream.priors.stereo import StereoParams
 from nicer_stream.render.beta import BetaField
 from nicer_stream.runtime.bound_estimate import bound_from_config, bound_from_depth
 from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpdated
@@ -61,7 +60,7 @@ class SlamSystem:
 
     def __init__(self, cfg: SlamConfig, device: str = "cpu",
                  progress: Callable[[str], MappingProgress | None] | None = None,
-                 stereo: StereoParams | None = None) -> None:
+                 stereo: bool = False) -> None:
         if cfg.loss.slam_prior_alignment not in ("lstsq", "map", "flow"):
             raise UserError(f"loss.slam_prior_alignment must be lstsq, map or flow, got {cfg.loss.slam_prior_alignment!r}")
         if cfg.tracking.init not in ("previous", "constant_velocity", "flow"):
@@ -72,9 +71,11 @@ class SlamSystem:
             raise UserError(f"tracking.frontend must be classical or none, got {cfg.tracking.frontend!r}")
         if cfg.frontend.features not in ("sift", "klt"):
             raise UserError(f"frontend.features must be sift or klt, got {cfg.frontend.features!r}")
+        if cfg.stereo.scale not in ("fixed", "fit"):
+            raise UserError(f"stereo.scale must be fixed or fit, got {cfg.stereo.scale!r}")
         self.cfg, self.device = cfg, torch.device(device)
         # `--priors stereo`: keyframe depth/normal priors by plane sweep before each mapping call.
-        self.stereo = StereoPriors(stereo) if stereo is not None else None
+        self.stereo = StereoPriors(cfg.stereo) if stereo else None
         self.progress = progress
         self.rng = random.Random(cfg.seed)
         self.model: SceneModel | None = None
@@ -370,7 +371,7 @@ class SlamSystem:
         (the widest-baseline partner it has a flow to); frames without one keep the fit."""
         for k in window:
             f = self.frames[k]
-            if self.stereo is not None and k in self.stereo.used:
+            if self.stereo is not None and k in self.stereo.used and self.stereo.params.scale == "fixed":
                 continue  # stereo depth is in the poses' unit already: (1, 0)
             wq = align_to_widest_partner(f, self.frames, self.poses)
             f.depth_scale_shift = wq if wq is not None else f.depth_scale_shift
