@@ -42,10 +42,10 @@ def depth_range(T_world_cam: np.ndarray, bound: SceneBound, near_frac: float = 0
 def stereo_normals(depth: np.ndarray, intr) -> np.ndarray:
     """(H, W) depth with 0 where unknown -> (H, W, 3) camera normals, zero where unknown: from
     the depth median-filtered (stereo noise) with holes filled only for the differences."""
-    valid = depth > 0
+    smooth = cv2.medianBlur(depth.astype(np.float32), 5)
+    valid = (depth > 0) & (smooth > 0)  # isolated pixels vanish in the median: unknown
     if not valid.any():
         return np.zeros(depth.shape + (3,), np.float32)
-    smooth = cv2.medianBlur(depth.astype(np.float32), 5)
     n = normals_from_depth(fill_invalid_nearest(np.where(valid, smooth, 0.0)), intr)
     # A normal needs its neighbours known too.
     ok = cv2.erode(valid.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)

@@ -67,8 +67,8 @@ class SlamSystem:
             raise UserError(f"tracking.init must be previous, constant_velocity or flow, got {cfg.tracking.init!r}")
         if cfg.mapping.init not in ("first_frame", "two_view"):
             raise UserError(f"mapping.init must be first_frame or two_view, got {cfg.mapping.init!r}")
-        if cfg.tracking.frontend not in ("classical", "none"):
-            raise UserError(f"tracking.frontend must be classical or none, got {cfg.tracking.frontend!r}")
+        if cfg.tracking.frontend not in ("classical", "none", "auto"):
+            raise UserError(f"tracking.frontend must be classical, none or auto, got {cfg.tracking.frontend!r}")
         if cfg.frontend.features not in ("sift", "klt"):
             raise UserError(f"frontend.features must be sift or klt, got {cfg.frontend.features!r}")
         if cfg.stereo.scale not in ("fixed", "fit"):
@@ -94,7 +94,9 @@ class SlamSystem:
         self.pending: list[MapFrame | None] = []  # held for the two-view start (None: corrupt)
         self.pending_raw: list[Frame] = []
         self.init_note = ""
-        self.frontend = ClassicalFrontend(cfg.frontend) if cfg.tracking.frontend == "classical" else None
+        # 'auto': the frontend where the depth prior needs good poses (stereo) or starts the SLAM.
+        use = cfg.tracking.frontend == "classical" or (cfg.tracking.frontend == "auto" and stereo)
+        self.frontend = ClassicalFrontend(cfg.frontend) if use else None
         self.frontend_seconds = 0.0
         self._fview = None  # (frame index, frontend two-view result) of the start without priors
         self._frontend_kept: set[int] = set()  # lost frames whose pose is the frontend's

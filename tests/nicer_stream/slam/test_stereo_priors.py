@@ -29,6 +29,9 @@ def test_stereo_normals_are_zero_where_depth_is_unknown():
     assert (np.abs(n[:, :8]).sum(-1) == 0).all()
     inner = n[4:-4, 12:-4]
     np.testing.assert_allclose(inner[..., 2], -1.0, atol=1e-3)  # a fronto-parallel wall faces the camera
+    sparse = np.zeros_like(d)
+    sparse[5, 5] = 2.0  # nothing confident around it (a run's first keyframes can look like this)
+    assert not stereo_normals(sparse, intr).any() and not stereo_normals(np.zeros_like(d), intr).any()
 
 
 def test_keyframe_priors_are_metric_in_the_poses_unit_and_two_sided_once_possible():
