@@ -18,7 +18,7 @@ $(VENV)/.installed: pyproject.toml
 	touch $@
 
 demo: setup
-	$(VENV)/bin/nicer-stream run --source "$(DEMO_SOURCE)" --out $(DEMO_OUT) --priors oracle --sink rerun:$(DEMO_OUT)/recording.rrd
+	$(VENV)/bin/nicer-stream run --source "$(DEMO_SOURCE)" --out $(DEMO_OUT) --sink rerun:$(DEMO_OUT)/recording.rrd
 
 test: setup
 	$(VENV)/bin/pytest
