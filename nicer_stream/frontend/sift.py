@@ -39,10 +39,11 @@ class SiftTracks:
         desc = np.zeros((0, 128), np.float32) if desc is None else desc
         ids = np.full(len(uv), -1, np.int64)
         if len(self.ids) >= 2 and len(desc) >= 2:
-            pairs = self.matcher.knnMatch(desc, self.desc, k=2)
-            q = np.array([p[0].queryIdx for p in pairs if len(p) == 2 and p[0].distance < self.ratio * p[1].distance], np.int64)
-            t = np.array([p[0].trainIdx for p in pairs if len(p) == 2 and p[0].distance < self.ratio * p[1].distance], np.int64)
-            q, t = self._unique(q, t, pairs)
+            good = [p[0] for p in self.matcher.knnMatch(desc, self.desc, k=2)
+                    if len(p) == 2 and p[0].distance < self.ratio * p[1].distance]
+            q = np.array([m.queryIdx for m in good], np.int64)
+            t = np.array([m.trainIdx for m in good], np.int64)
+            q, t = self._unique(q, t, np.array([m.distance for m in good]))
             keep = self._epipolar_inliers(self.uv[t], uv[q])
             ids[q[keep]] = self.ids[t[keep]]
         new = ids < 0
@@ -53,11 +54,10 @@ class SiftTracks:
         return ids, uv
 
     @staticmethod
-    def _unique(q: np.ndarray, t: np.ndarray, pairs) -> tuple[np.ndarray, np.ndarray]:
+    def _unique(q: np.ndarray, t: np.ndarray, dist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Keep one query per track (the closest), so no track gets two pixels in a frame."""
         if len(q) == 0:
             return q, t
-        dist = np.array([pairs[i][0].distance for i in q])
         order = np.lexsort((dist, t))
         first = np.ones(len(order), bool)
         first[1:] = t[order][1:] != t[order][:-1]

@@ -42,4 +42,3 @@ def triangulate(T_a: np.ndarray, T_b: np.ndarray, uv_a: np.ndarray, uv_b: np.nda
     cos = (ra * rb).sum(1) / np.maximum(np.linalg.norm(ra, axis=1) * np.linalg.norm(rb, axis=1), 1e-12)
     ok &= cos < np.cos(np.radians(min_parallax_deg))
     return X, ok
-

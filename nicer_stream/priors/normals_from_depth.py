@@ -6,6 +6,7 @@ pixel centres. Normals face the camera: n . p < 0 for the point p they belong to
 from __future__ import annotations
 
 import numpy as np
+from scipy import ndimage
 
 from nicer_stream.types import Intrinsics
 
@@ -56,6 +57,16 @@ def orient_towards_camera(normal: np.ndarray, intr: Intrinsics) -> np.ndarray:
     n = np.where(norm > 1e-12, n / np.maximum(norm, 1e-300), -ray)
     n[(n * ray).sum(-1) > 0] *= -1.0
     return n.astype(np.float32)
+
+
+def fill_nearest(depth: np.ndarray) -> np.ndarray:
+    """(H, W) depth with 0/non-finite pixels replaced by the nearest valid one -> float32.
+    At least one pixel must be valid."""
+    bad = ~(np.isfinite(depth) & (depth > 0))
+    if not bad.any():
+        return depth.astype(np.float32)
+    idx = ndimage.distance_transform_edt(bad, return_distances=False, return_indices=True)
+    return depth[idx[0], idx[1]].astype(np.float32)
 
 
 def normals_from_depth(depth: np.ndarray, intr: Intrinsics) -> np.ndarray:

@@ -30,13 +30,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 import torch
-from scipy import ndimage
 
 from nicer_stream.errors import UserError
 from nicer_stream.geometry.camera import in_image, pixel_grid, project, unproject
 from nicer_stream.geometry.se3 import invert, transform_points
 from nicer_stream.priors.base import DepthNormal, DepthNormalProvider, FlowProvider
-from nicer_stream.priors.normals_from_depth import normals_from_depth, orient_towards_camera
+from nicer_stream.priors.normals_from_depth import fill_nearest, normals_from_depth, orient_towards_camera
 from nicer_stream.types import FlowPrior, Frame, Intrinsics
 
 _NEEDS_GT = (
@@ -76,9 +75,14 @@ class OracleCorruption:
         return OracleCorruption(blur_sigma_frac=0.0, noise_rel=0.01, field_std=0.0, normal_blur_frac=0.0,
                                 normal_field_std=0.0, normal_noise_std=0.0)
 
+    @property
+    def is_clean(self) -> bool:
+        """No distortion field on depth nor tilt on normals: `oracle:clean`."""
+        return self.field_std == 0 and self.normal_field_std == 0
+
     def describe(self) -> str:
         """One line for outputs: what this oracle imitates."""
-        if self.field_std == 0 and self.normal_field_std == 0:
+        if self.is_clean:
             return "oracle:clean (GT depth, 1 px blur, 1% noise, GT normals; debugging only)"
         return (f"oracle (GT corrupted like a monocular network: smooth depth field {self.field_std:.0%}, "
                 f"noise {self.noise_rel:.0%}, edge blur {self.blur_sigma_frac:.1%} of width, "
@@ -98,13 +102,9 @@ def smooth_field(shape: tuple[int, int], cells: int, rng: np.random.Generator, c
 
 def fill_invalid_nearest(depth: np.ndarray) -> np.ndarray:
     """(H, W) float32 depth with 0/non-finite pixels replaced by the nearest valid one."""
-    bad = ~(np.isfinite(depth) & (depth > 0))
-    if not bad.any():
-        return depth.astype(np.float32)
-    if bad.all():
+    if not (np.isfinite(depth) & (depth > 0)).any():
         raise UserError("the 'oracle' prior got a GT depth image with no valid pixel: check the source's depth files")
-    idx = ndimage.distance_transform_edt(bad, return_distances=False, return_indices=True)
-    return depth[idx[0], idx[1]].astype(np.float32)
+    return fill_nearest(depth)
 
 
 def corrupt_depth(depth: np.ndarray, rng: np.random.Generator, c: OracleCorruption) -> np.ndarray:
@@ -180,7 +180,7 @@ class OracleDepthNormal(DepthNormalProvider):
     def __init__(self, seed: int = 0, corruption: OracleCorruption = OracleCorruption()) -> None:
         self.seed = seed
         self.corruption = corruption
-        self.name = "oracle" if corruption.normal_field_std or corruption.field_std else "oracle:clean"
+        self.name = "oracle:clean" if corruption.is_clean else "oracle"
         self.description = corruption.describe()
 
     def predict(self, frame: Frame) -> DepthNormal:

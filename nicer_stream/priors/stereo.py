@@ -60,13 +60,13 @@ def plane_count(intr: Intrinsics, baselines: list[float], near: float, far: floa
 
 def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tuple[np.ndarray, np.ndarray]],
                 intr: Intrinsics, near: float, far: float,
-                params: StereoConfig = StereoConfig()) -> tuple[np.ndarray, np.ndarray]:
+                params: StereoConfig = StereoConfig()) -> np.ndarray:
     """Plane-sweep depth of the reference image.
 
     ref_rgb (H, W, 3) float [0, 1]; T_world_ref (4, 4) T_world_cam; partners: (rgb (H, W, 3),
     T_world_cam (4, 4)) pairs, same intrinsics `intr`; near < far: the z-depth range searched,
-    in the poses' unit. Returns (z-depth (H, W) float32 in the poses' unit, 0 where not
-    confident; best ZNCC (H, W) float32)."""
+    in the poses' unit. Returns the z-depth (H, W) float32 in the poses' unit, 0 where not
+    confident."""
     if not partners:
         raise ValueError("plane sweep needs at least one partner image")
     w, (h, wd) = params.window, ref_rgb.shape[:2]
@@ -106,12 +106,14 @@ def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tup
     off = np.where((k > 0) & (k < n - 1) & (denom > 1e-9), 0.5 * (cm - cp) / np.maximum(denom, 1e-9), 0.0)
     step = inv_d[1] - inv_d[0] if n > 1 else 0.0
     depth = 1.0 / (inv_d[k] + np.clip(off, -0.5, 0.5) * step)
-    # Runner-up: the lowest cost at least 2 planes from the best.
-    planes = np.arange(n)[:, None, None]
-    far_cost = np.where(np.abs(planes - k[None]) >= 2, cost, np.inf).min(0)
-    ok = (std_a >= params.min_texture) & (c0 <= 1.0 - params.min_ncc) & (far_cost - c0 >= params.min_uniqueness)
+    ok = (std_a >= params.min_texture) & (c0 <= 1.0 - params.min_ncc)
     ok &= agree & (c0 < 2.0) & (k > 0) & (k < n - 1)  # seen by a partner; not at the ends of the range
-    return np.where(ok, depth, 0.0).astype(np.float32), (1.0 - c0).astype(np.float32)
+    if params.min_uniqueness > 0:  # c0 is the minimum: a bound of 0 rejects nothing
+        # Runner-up: the lowest cost at least 2 planes from the best.
+        planes = np.arange(n)[:, None, None]
+        far_cost = np.where(np.abs(planes - k[None]) >= 2, cost, np.inf).min(0)
+        ok &= far_cost - c0 >= params.min_uniqueness
+    return np.where(ok, depth, 0.0).astype(np.float32)
 
 
 class StereoDepthNormal(DepthNormalProvider):

@@ -2,8 +2,8 @@
 neighbouring keyframes and the SLAM's own pose estimates (no ground truth, no weights).
 
 The depth is in the poses' unit, so its scale and shift are fixed at (1, 0) (`stereo.scale =
-'fixed'`): the map is pulled to the scale of its own trajectory, never to a per-frame fit. A keyframe's prior is computed
-when a mapping call first includes it, from the keyframes nearest to it (one before and one
+'fixed'`): the map is pulled to the scale of its own trajectory, never to a per-frame fit. A
+keyframe's prior is computed when a mapping call first includes it, from the keyframes nearest to it (one before and one
 after where they exist), and once more when a later neighbour makes a one-sided pair
 two-sided."""
 from __future__ import annotations
@@ -14,11 +14,10 @@ import cv2
 import numpy as np
 import torch
 
+from nicer_stream.config import StereoConfig
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.model.bound import SceneBound
-from nicer_stream.priors.normals_from_depth import normals_from_depth
-from nicer_stream.priors.oracle import fill_invalid_nearest
-from nicer_stream.config import StereoConfig
+from nicer_stream.priors.normals_from_depth import fill_nearest, normals_from_depth
 from nicer_stream.priors.stereo import sweep_depth
 
 
@@ -46,7 +45,7 @@ def stereo_normals(depth: np.ndarray, intr) -> np.ndarray:
     valid = (depth > 0) & (smooth > 0)  # isolated pixels vanish in the median: unknown
     if not valid.any():
         return np.zeros(depth.shape + (3,), np.float32)
-    n = normals_from_depth(fill_invalid_nearest(np.where(valid, smooth, 0.0)), intr)
+    n = normals_from_depth(fill_nearest(np.where(valid, smooth, 0.0)), intr)
     # A normal needs its neighbours known too.
     ok = cv2.erode(valid.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     return np.where(ok[..., None], n, 0.0).astype(np.float32)
@@ -85,7 +84,7 @@ class StereoPriors:
     def _compute(self, f: MapFrame, partners: list[MapFrame], poses: dict[int, torch.Tensor], bound: SceneBound) -> None:
         T = poses[f.index].double().cpu().numpy()
         near, far = depth_range(T, bound)
-        depth, _ = sweep_depth(f.rgb.cpu().numpy(), T,
+        depth = sweep_depth(f.rgb.cpu().numpy(), T,
                                [(p.rgb.cpu().numpy(), poses[p.index].double().cpu().numpy()) for p in partners],
                                f.intr, near, far, self.params)
         f.depth_prior = torch.as_tensor(depth, device=f.rgb.device)

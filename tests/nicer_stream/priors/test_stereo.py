@@ -35,7 +35,7 @@ def test_plane_homography_maps_a_point_on_the_plane_like_projection():
 
 def test_sweep_depth_on_textured_surfaces_within_3_percent(room):
     f = room[10]
-    d, _ = sweep_depth(f.rgb, f.gt_pose, [(room[5].rgb, room[5].gt_pose), (room[15].rgb, room[15].gt_pose)],
+    d = sweep_depth(f.rgb, f.gt_pose, [(room[5].rgb, room[5].gt_pose), (room[15].rgb, room[15].gt_pose)],
                        f.intrinsics, *_range(f))
     m = (d > 0) & (f.gt_depth > 0)
     rel = np.abs(d[m] - f.gt_depth[m]) / f.gt_depth[m]
@@ -48,7 +48,7 @@ def test_untextured_and_unseen_pixels_are_not_confident(room):
     f, p = room[10], room[14]
     ref = f.rgb.copy()
     ref[60:140, 100:220] = 0.5  # a blank patch: any depth matches it
-    d, _ = sweep_depth(ref, f.gt_pose, [(p.rgb, p.gt_pose)], f.intrinsics, *_range(f))
+    d = sweep_depth(ref, f.gt_pose, [(p.rgb, p.gt_pose)], f.intrinsics, *_range(f))
     assert (d[70:130, 110:210] > 0).mean() < 0.05
     # Pixels whose GT point leaves the partner's image have nothing to match.
     from nicer_stream.priors.oracle import flow_from_depth_pose
