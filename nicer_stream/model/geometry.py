@@ -8,7 +8,7 @@ from torch import nn
 
 from nicer_stream.config import ModelConfig
 from nicer_stream.model.dense_grid import DenseGrids, geometric_resolutions
-from nicer_stream.model.mlp import TangentMLP
+from nicer_stream.model.mlp import GeometryMLP
 from nicer_stream.model.positional import encoding_dim, positional_encoding
 
 
@@ -34,10 +34,10 @@ class GeometryField(nn.Module):
         self.cfg = cfg
         pe = encoding_dim(cfg.pe_levels)
         self.coarse_grid = DenseGrids([cfg.coarse_res], cfg.coarse_dim)
-        self.coarse_mlp = TangentMLP(pe + cfg.coarse_dim, cfg.coarse_hidden, 1, 1 + cfg.geo_feature_dim)
+        self.coarse_mlp = GeometryMLP(pe + cfg.coarse_dim, cfg.coarse_hidden, 1, 1 + cfg.geo_feature_dim)
         fine_res = geometric_resolutions(cfg.fine_res_min, cfg.fine_res_max, cfg.fine_levels)
         self.fine_grid = DenseGrids(fine_res, cfg.fine_dim)
-        self.fine_mlp = TangentMLP(pe + self.fine_grid.out_dim, cfg.fine_hidden, cfg.fine_layers, 1 + cfg.geo_feature_dim)
+        self.fine_mlp = GeometryMLP(pe + self.fine_grid.out_dim, cfg.fine_hidden, cfg.fine_layers, 1 + cfg.geo_feature_dim)
 
     def forward(self, x: torch.Tensor, use_fine: bool = True, with_grad: bool = False) -> GeometrySample:
         """x (N, 3) normalised coordinates."""
@@ -47,17 +47,18 @@ class GeometryField(nn.Module):
         gc, gc_j = self.coarse_grid(x, with_tangent=tan)
         h = torch.cat([pe, gc], dim=-1)
         hj = torch.cat([pe_j, gc_j], dim=-1) if tan else None
-        out, out_j = self.coarse_mlp(h, hj)
+        out, out_g = self.coarse_mlp.value_and_grad0(h, hj) if tan else (self.coarse_mlp(h), None)
         r = x.norm(dim=-1).clamp_min(1e-9)
         sdf = self.cfg.sphere_radius - r + out[:, 0]
-        grad = (-x / r[:, None] + out_j[:, :, 0]) if tan else None
+        grad = (-x / r[:, None] + out_g) if tan else None
         z_coarse = out[:, 1:]
         z_fine = torch.zeros_like(z_coarse)
         if use_fine:
             gf, gf_j = self.fine_grid(x, with_tangent=tan)
-            fo, fo_j = self.fine_mlp(torch.cat([pe, gf], -1), torch.cat([pe_j, gf_j], -1) if tan else None)
+            hf = torch.cat([pe, gf], -1)
+            fo, fo_g = self.fine_mlp.value_and_grad0(hf, torch.cat([pe_j, gf_j], -1)) if tan else (self.fine_mlp(hf), None)
             sdf = sdf + fo[:, 0]
             if tan:
-                grad = grad + fo_j[:, :, 0]
+                grad = grad + fo_g
             z_fine = fo[:, 1:]
         return GeometrySample(sdf, grad, z_coarse, z_fine)

@@ -1,6 +1,6 @@
-"""Small MLPs. `TangentMLP` also propagates input Jacobians (forward mode), so the
-spatial gradient of its output is an ordinary differentiable tensor: SDF
-normals and the Eikonal term then need only first-order backward.
+"""Small MLPs. `GeometryMLP` also returns the spatial gradient of its first output (the SDF)
+as an ordinary differentiable tensor, so SDF normals and the Eikonal term need only a
+first-order backward (its analytic second derivative is in `sdf_grad_mlp.py`).
 """
 from __future__ import annotations
 
@@ -8,11 +8,12 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from nicer_stream.model.fused_mlp import SOFTPLUS_BETA as _SOFTPLUS_BETA, FusedTangentMLP, softplus_beta
+from nicer_stream.model.softplus import SOFTPLUS_BETA as _SOFTPLUS_BETA, softplus_beta
+from nicer_stream.model.sdf_grad_mlp import FusedSdfGradMLP
 
 
-class TangentMLP(nn.Module):
-    """Linear layers with Softplus(beta=100) between them."""
+class GeometryMLP(nn.Module):
+    """Linear layers with Softplus(beta=100) between them; output 0 is the SDF."""
 
     def __init__(self, in_dim: int, hidden: int, n_hidden: int, out_dim: int, last_std: float = 1e-4) -> None:
         super().__init__()
@@ -21,18 +22,21 @@ class TangentMLP(nn.Module):
         nn.init.normal_(self.layers[-1].weight, std=last_std)
         nn.init.zeros_(self.layers[-1].bias)
 
-    def forward(self, h: torch.Tensor, tangent: torch.Tensor | None = None):
-        """h (N, in), tangent (N, 3, in) or None -> out (N, out), tangent (N, 3, out) or None.
-
-        With a tangent: one fused autograd node (`fused_mlp.py`); without: plain layers."""
-        if tangent is not None:
-            params = [p for layer in self.layers for p in (layer.weight, layer.bias)]
-            return FusedTangentMLP.apply(h, tangent, len(self.layers), *params)
+    def forward(self, h: torch.Tensor) -> torch.Tensor:
+        """h (N, in) -> (N, out), no spatial gradient (probes, meshing)."""
         for i, layer in enumerate(self.layers):
             h = layer(h)
             if i < len(self.layers) - 1:
                 h = softplus_beta(h)
-        return h, None
+        return h
+
+    def value_and_grad0(self, h: torch.Tensor, tangent: torch.Tensor):
+        """h (N, in), tangent (N, 3, in) -> out (N, out), the tangent of out[:, 0] only (N, 3).
+
+        Reverse mode in one fused node (`sdf_grad_mlp.py`): half the FLOPs of `forward`'s
+        three tangent rows when only the SDF's gradient is needed."""
+        params = [p for layer in self.layers for p in (layer.weight, layer.bias)]
+        return FusedSdfGradMLP.apply(h, tangent, len(self.layers), *params)
 
     def reference_forward(self, h: torch.Tensor, tangent: torch.Tensor | None = None):
         """The same function through autograd over plain ops (the tests' reference)."""

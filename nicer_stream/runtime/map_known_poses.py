@@ -15,6 +15,7 @@ from nicer_stream.mapping.mapper import Mapper
 from nicer_stream.mapping.prior_alignment import align_to_widest_partner
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
+from nicer_stream.runtime.allocator import retain_freed_memory
 from nicer_stream.runtime.checkpoint import save_scene
 from nicer_stream.model.bound import SceneBound, bound_from_points
 from nicer_stream.runtime.bound_estimate import bound_from_cameras, bound_from_config, metric_points
@@ -97,6 +98,7 @@ def run_map(req: MapRequest) -> Path:
         raise UserError("--priors stereo needs the SLAM's poses: use `nicer-stream run` (map takes per-frame priors)")
     timer = StageTimer()
     torch.manual_seed(cfg.seed)
+    retain_freed_memory()
     source, _ = open_configured(req.source, req.source_opts, cfg)
     frames = list(source)
     if not frames:

@@ -12,6 +12,7 @@ import torch
 
 from nicer_stream import config as config_mod
 from nicer_stream.errors import UserError
+from nicer_stream.runtime.allocator import retain_freed_memory
 from nicer_stream.runtime.checkpoint import save_scene
 from nicer_stream.runtime.frame_priors import make_engine, provider_names
 from nicer_stream.runtime.pacer import Pacer
@@ -52,6 +53,7 @@ class RunRequest:
 def run_slam(req: RunRequest) -> Path:
     cfg = config_mod.load(req.preset, req.config_file)
     torch.manual_seed(cfg.seed)
+    retain_freed_memory()
     timer = StageTimer()
     print(f"opening {req.source} (preset {cfg.preset}, priors {req.priors}, device {req.device}); "
           f"mapping progress on stderr", flush=True)
