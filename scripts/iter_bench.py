@@ -7,6 +7,7 @@ Usage: .venv/bin/python scripts/iter_bench.py [--presets fast,paper] [--iters N]
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import time
 
 import numpy as np
@@ -38,10 +39,13 @@ def mlp_macs(dims: list[int]) -> int:
     return sum(a * b for a, b in zip(dims[:-1], dims[1:]))
 
 
-def flops_per_iteration(cfg, rays: int, n_probe: int, n_grad: int, eikonal: int, tracking: bool) -> float:
+def flops_per_iteration(cfg, rays: int, n_probe: int, n_grad: int, eikonal: int, tracking: bool,
+                        tangents: bool = False) -> float:
     """Matmul FLOPs of one iteration (the MLPs dominate; grids and compositing are memory-bound).
-    Probe: forward of coarse + fine geometry. Samples with gradient: geometry forward with 3
-    tangents (4x), colour forward, and a backward of ~2x the forward."""
+    Probe: forward of coarse + fine geometry. Samples with gradient: geometry value plus the
+    reverse sweep for its gradient (2x), colour forward; a backward of ~2x that forward when
+    the weights get gradients (mapping), ~1x when they are frozen (tracking). `tangents=True`
+    counts the forward-mode geometry of the code before `sdf_grad_mlp.py` (4 rows)."""
     m = cfg.model
     pe = 3 + 6 * m.pe_levels
     coarse = mlp_macs([pe + m.coarse_dim, m.coarse_hidden, 1 + m.geo_feature_dim])
@@ -50,14 +54,18 @@ def flops_per_iteration(cfg, rays: int, n_probe: int, n_grad: int, eikonal: int,
     color = mlp_macs([color_in] + [m.color_hidden] * m.color_layers + [3])
     geo = coarse + fine
     probe = rays * n_probe * geo
-    fwd = rays * n_grad * (4 * geo + color) + eikonal * 4 * geo
-    return 2 * (probe + 3 * fwd)
+    rows = 4 if tangents else 2
+    fwd = rays * n_grad * (rows * geo + color) + eikonal * rows * geo
+    return 2 * (probe + (2 if tracking and not tangents else 3) * fwd)
 
 
 def load(n_frames: int, max_side: int):
     src = open_source(REPLICA, SourceOptions(max_side=max_side, max_frames=n_frames))
     frames = list(src)
-    engine = make_engine("oracle:clean", None, "cpu")
+    try:
+        engine = make_engine("oracle:clean", None, "cpu")
+    except Exception:  # a baseline commit from before `oracle:clean` (its `oracle` is the same)
+        engine = make_engine("oracle", None, "cpu")
     mfs = [map_frame(f, engine, [frames[j] for j in (i - 2, i + 2) if 0 <= j < len(frames)], "cpu")
            for i, f in enumerate(frames)]
     poses = {f.index: torch.tensor(f.gt_pose, dtype=torch.float32) for f in frames}
@@ -98,9 +106,11 @@ def bench(name: str, iters: int, profile: bool) -> dict:
         print(f"--- {name}: tracking profile (6 iterations)")
         print(p.key_averages().table(sort_by="self_cpu_time_total", row_limit=12))
     r = cfg.render
+    # The code before `sdf_grad_mlp.py` pushed three tangent rows through the geometry MLPs.
+    tangents = importlib.util.find_spec("nicer_stream.model.sdf_grad_mlp") is None
     tr = tracker.render
-    m_flop = flops_per_iteration(cfg, cfg.mapping.rays, r.n_probe, r.n_importance + r.n_uniform, cfg.mapping.eikonal_points, False)
-    t_flop = flops_per_iteration(cfg, cfg.tracking.rays, tr.n_probe, tr.n_importance + tr.n_uniform, 0, True)
+    m_flop = flops_per_iteration(cfg, cfg.mapping.rays, r.n_probe, r.n_importance + r.n_uniform, cfg.mapping.eikonal_points, False, tangents)
+    t_flop = flops_per_iteration(cfg, cfg.tracking.rays, tr.n_probe, tr.n_importance + tr.n_uniform, 0, True, tangents)
     return {"preset": name, "map_s": map_s, "track_s": track_s, "map_gflop": m_flop / 1e9, "track_gflop": t_flop / 1e9}
 
 
