@@ -51,24 +51,6 @@ class Intrinsics:
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
 
-@dataclass(frozen=True)
-class CameraPose:
-    """A camera pose `T_world_cam` (4x4, camera-to-world, metres) at `timestamp` seconds."""
-
-    T_world_cam: np.ndarray
-    timestamp: float = 0.0
-
-    @property
-    def translation(self) -> np.ndarray:
-        """(3,) camera centre in world coordinates."""
-        return self.T_world_cam[:3, 3]
-
-    @property
-    def rotation(self) -> np.ndarray:
-        """(3, 3) R_world_cam."""
-        return self.T_world_cam[:3, :3]
-
-
 @dataclass
 class Frame:
     """One input image and what the source knows about it.

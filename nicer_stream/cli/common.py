@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import functools
-import sys
 
 import typer
 
@@ -51,9 +50,3 @@ def parse_drop(text: str | None) -> tuple[int, int] | None:
         return int(a), int(b)
     except ValueError:
         raise UserError(f"--drop must be 'A:B' (two integers, drops input frames A..B-1), got '{text}'") from None
-
-
-def not_built(command: str, issue: int) -> None:
-    """Exit non-zero for a command that a later issue brings."""
-    typer.echo(f"'nicer-stream {command}' is not built yet (issue #{issue} brings it)", err=True)
-    sys.exit(3)

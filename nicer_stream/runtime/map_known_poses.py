@@ -18,7 +18,7 @@ from nicer_stream.render.beta import BetaField
 from nicer_stream.runtime.allocator import retain_freed_memory
 from nicer_stream.runtime.checkpoint import save_scene
 from nicer_stream.model.bound import SceneBound, bound_from_points
-from nicer_stream.runtime.bound_estimate import bound_from_cameras, bound_from_config, metric_points
+from nicer_stream.model.bound_estimate import bound_from_cameras, bound_from_config, metric_points
 from nicer_stream.runtime.frame_priors import make_engine, map_frame, provider_names
 from nicer_stream.runtime.progress import Progress
 from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_trajectory

@@ -34,10 +34,6 @@ def save_render(out_dir: Path, index: int, view: RenderedImage, observed_rgb: np
     return path
 
 
-def render_view(model: SceneModel, beta: BetaField, T_world_cam: torch.Tensor, intr: Intrinsics, cfg: SlamConfig) -> RenderedImage:
-    return render_image(model, beta, T_world_cam, intr, cfg.render)
-
-
 def depth_views(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intrinsics, cfg: SlamConfig,
                 max_views: int = 8, width: int = 80) -> list[DepthView]:
     """Low-resolution rendered depth of up to `max_views` evenly spread poses (for culling)."""

@@ -24,7 +24,7 @@ from nicer_stream.mapping.prior_alignment import align_prior_to_map, align_to_wi
 from nicer_stream.model.bound import SceneBound, bound_from_points
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
-from nicer_stream.runtime.bound_estimate import bound_from_config, bound_from_depth
+from nicer_stream.model.bound_estimate import bound_from_config, bound_from_depth
 from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpdated
 from nicer_stream.slam.motion import frontend_disagreement, predict_pose, tracking_failure
 from nicer_stream.slam.stereo_priors import StereoPriors
