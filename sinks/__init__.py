@@ -44,6 +44,14 @@ class MultiSink(Sink):
         for s in self.sinks:
             s.log_beta_voxels(*args, **kwargs)
 
+    def log_map_render(self, *args, **kwargs) -> None:
+        for s in self.sinks:
+            s.log_map_render(*args, **kwargs)
+
+    def log_keyframes(self, *args, **kwargs) -> None:
+        for s in self.sinks:
+            s.log_keyframes(*args, **kwargs)
+
     def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
         for s in self.sinks:
             s.log_scalars(index, values)

@@ -54,6 +54,17 @@ class Sink(ABC):
         """Voxel centres (N, 3) world metres with their density sharpness `beta` (N,)."""
 
     @abstractmethod
+    def log_map_render(self, index: int, rgb: np.ndarray, depth: np.ndarray, normal: np.ndarray,
+                       intrinsics: Intrinsics, T_world_cam: np.ndarray) -> None:
+        """What the map renders at keyframe `index`'s pose after a map update: rgb (H, W, 3),
+        z-depth (H, W) metres, camera-frame normals (H, W, 3); logged at the current frame's time."""
+
+    @abstractmethod
+    def log_keyframes(self, poses: np.ndarray) -> None:
+        """Every keyframe's pose (K, 4, 4) after a map update (local BA moves them), at the
+        current frame's time."""
+
+    @abstractmethod
     def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
         """Named metrics (name -> value) at frame `index`."""
 

@@ -9,6 +9,9 @@ Topics (frame ids: `world`, `camera` = OpenCV optical frame):
                        orientations unless rotations are given)
   /mesh                SceneUpdate with one TriangleListPrimitive
   /beta                PointCloud, fields x y z beta (float32)
+  /map/image /map/depth /map/normal /map/calibration   the map's render of the newest keyframe
+                       after each map update (frame id `map_camera`, placed by /tf and /map/pose)
+  /keyframes           PosesInFrame: every keyframe's pose after each map update
   /metrics/{name}      google.protobuf.DoubleValue
 Every message's log_time and publish_time is the sensor time in ns (frame time; the last
 frame's time for trajectory, mesh, beta).
@@ -39,7 +42,7 @@ from nicer_stream.types import Intrinsics
 from sinks.base import (Sink, colors_to_u8, encode_jpeg, normal_to_u8, pose_tq, rotations_to_quats,
                         seconds_to_ns)
 
-WORLD, CAMERA = "world", "camera"
+WORLD, CAMERA, MAP_CAMERA = "world", "camera", "map_camera"
 
 
 def make_pose(t: np.ndarray, q: np.ndarray) -> Pose:
@@ -50,9 +53,9 @@ def make_pose(t: np.ndarray, q: np.ndarray) -> Pose:
     return p
 
 
-def calibration(intr: Intrinsics, ns: int) -> CameraCalibration:
+def calibration(intr: Intrinsics, ns: int, frame_id: str = CAMERA) -> CameraCalibration:
     """Undistorted pinhole: K (3x3) and P = [K | 0] (3x4), row-major."""
-    msg = CameraCalibration(frame_id=CAMERA, width=intr.width, height=intr.height, distortion_model="plumb_bob")
+    msg = CameraCalibration(frame_id=frame_id, width=intr.width, height=intr.height, distortion_model="plumb_bob")
     msg.timestamp.FromNanoseconds(ns)
     K = intr.matrix()
     msg.K.extend(K.reshape(-1).tolist())
@@ -62,17 +65,17 @@ def calibration(intr: Intrinsics, ns: int) -> CameraCalibration:
     return msg
 
 
-def depth_image(depth: np.ndarray, ns: int) -> RawImage:
+def depth_image(depth: np.ndarray, ns: int, frame_id: str = CAMERA) -> RawImage:
     """(H, W) z-depth metres -> RawImage 32FC1, little-endian, unpadded rows."""
     d = np.ascontiguousarray(depth, dtype="<f4")
-    msg = RawImage(frame_id=CAMERA, width=d.shape[1], height=d.shape[0], encoding="32FC1",
+    msg = RawImage(frame_id=frame_id, width=d.shape[1], height=d.shape[0], encoding="32FC1",
                    step=4 * d.shape[1], data=d.tobytes())
     msg.timestamp.FromNanoseconds(ns)
     return msg
 
 
-def compressed(data: bytes, fmt: str, ns: int) -> CompressedImage:
-    msg = CompressedImage(frame_id=CAMERA, data=data, format=fmt)
+def compressed(data: bytes, fmt: str, ns: int, frame_id: str = CAMERA) -> CompressedImage:
+    msg = CompressedImage(frame_id=frame_id, data=data, format=fmt)
     msg.timestamp.FromNanoseconds(ns)
     return msg
 
@@ -152,14 +155,17 @@ class McapSink(Sink):
         self._write_pose(index, timestamp, T_world_cam, gt_T_world_cam, timestamp_ns)
         self._flush_chunk()
 
-    def _write_pose(self, index, timestamp, T_world_cam, gt_T_world_cam, timestamp_ns) -> None:
-        ns = self._now_ns = self._time_ns[int(index)] = seconds_to_ns(timestamp, timestamp_ns)
+    def _write_tf(self, T_world_cam: np.ndarray, child: str, ns: int) -> None:
         t, q = pose_tq(T_world_cam)
-        tf = FrameTransform(parent_frame_id=WORLD, child_frame_id=CAMERA)
+        tf = FrameTransform(parent_frame_id=WORLD, child_frame_id=child)
         tf.timestamp.FromNanoseconds(ns)
         tf.translation.x, tf.translation.y, tf.translation.z = (float(v) for v in t)
         tf.rotation.x, tf.rotation.y, tf.rotation.z, tf.rotation.w = (float(v) for v in q)
         self._write("/tf", tf)
+
+    def _write_pose(self, index, timestamp, T_world_cam, gt_T_world_cam, timestamp_ns) -> None:
+        ns = self._now_ns = self._time_ns[int(index)] = seconds_to_ns(timestamp, timestamp_ns)
+        self._write_tf(T_world_cam, CAMERA, ns)
         self._write("/camera/pose", self._pose_in_frame(T_world_cam, ns))
         if gt_T_world_cam is not None:
             self._write("/camera/gt_pose", self._pose_in_frame(gt_T_world_cam, ns))
@@ -193,6 +199,24 @@ class McapSink(Sink):
     def log_beta_voxels(self, centres, beta, voxel_size) -> None:
         # PointCloud has no point size: viewers pick one (voxel_size is not stored).
         self._write("/beta", beta_cloud(centres, beta, self._now_ns))
+
+    def log_map_render(self, index, rgb, depth, normal, intrinsics: Intrinsics, T_world_cam) -> None:
+        ns = self._now_ns
+        self._write_tf(T_world_cam, MAP_CAMERA, ns)
+        pose = self._pose_in_frame(T_world_cam, ns)
+        self._write("/map/pose", pose)
+        self._write("/map/calibration", calibration(intrinsics, ns, MAP_CAMERA))
+        self._write("/map/image", compressed(encode_jpeg(rgb, self.jpeg_quality), "jpeg", ns, MAP_CAMERA))
+        self._write("/map/depth", depth_image(depth, ns, MAP_CAMERA))
+        _, png = cv2.imencode(".png", cv2.cvtColor(normal_to_u8(normal), cv2.COLOR_RGB2BGR))
+        self._write("/map/normal", compressed(png.tobytes(), "png", ns, MAP_CAMERA))
+        self._flush_chunk()
+
+    def log_keyframes(self, poses) -> None:
+        poses = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
+        msg = PosesInFrame(frame_id=WORLD, poses=[make_pose(*pose_tq(T)) for T in poses])
+        msg.timestamp.FromNanoseconds(self._now_ns)
+        self._write("/keyframes", msg)
 
     def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
         ns = self._time_ns.get(int(index), self._now_ns)

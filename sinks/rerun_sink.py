@@ -4,7 +4,12 @@ Entities (world frame = the SLAM world, metres):
   world/camera               Transform3D, camera-to-world (T_world_cam)
   world/camera/image         Pinhole (RDF = OpenCV axes) with rgb (JPEG), depth (m), normal ((n+1)/2)
   world/camera_gt            Transform3D of the ground-truth camera, when given
-  world/trajectory/{name}    LineStrips3D (estimate, gt)
+  world/map_camera/image/{rgb,depth,normal}  the map's render of the newest keyframe after each
+                             map update (world/map_camera: its pose; image: its Pinhole)
+  world/keyframes            Points3D of every keyframe's centre and Arrows3D of its optical axis
+  world/trajectory/estimate  LineStrips3D of the estimated trajectory
+  world/trajectory/gt/NNNNN  LineStrips3D of the ground truth, one piece per `gt_strip_every` frames
+                             (each starts where the previous ended: logging stays linear in frames)
   world/mesh                 Mesh3D (logged rarely: every write is stored)
   world/beta                 Points3D at voxel centres, radius voxel/2, coloured by beta
   metrics/{name}             Scalars
@@ -31,15 +36,20 @@ APP_ID = "nicer-stream"
 
 def default_blueprint() -> rrb.Blueprint:
     """3D world view, the camera's 2D images (tabs) and the metrics time series."""
-    image = "world/camera/image"
+    image, render = "world/camera/image", "world/map_camera/image"
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Spatial3DView(origin="world", name="3D"),
             rrb.Vertical(
                 rrb.Tabs(
-                    rrb.Spatial2DView(origin=image, contents=["$origin", "$origin/rgb"], name="rgb"),
+                    rrb.Spatial2DView(origin=image, contents=["$origin", "$origin/rgb"], name="input"),
                     rrb.Spatial2DView(origin=image, contents=["$origin", "$origin/depth"], name="depth"),
                     rrb.Spatial2DView(origin=image, contents=["$origin", "$origin/normal"], name="normal"),
+                ),
+                rrb.Tabs(
+                    rrb.Spatial2DView(origin=render, contents=["$origin", "$origin/rgb"], name="map rgb"),
+                    rrb.Spatial2DView(origin=render, contents=["$origin", "$origin/depth"], name="map depth"),
+                    rrb.Spatial2DView(origin=render, contents=["$origin", "$origin/normal"], name="map normal"),
                 ),
                 rrb.TimeSeriesView(origin="metrics", name="metrics"),
             ),
@@ -88,8 +98,9 @@ class RerunSink(Sink):
         self.flush_every = max(1, flush_every)
         self.gt_strip_every = max(1, gt_strip_every)
         self._time_ns: dict[int, int] = {}
-        self._gt_positions: list[np.ndarray] = []
-        self._gt_logged = 0
+        self._gt_piece: list[np.ndarray] = []  # GT positions not logged yet, after the last logged one
+        self._gt_new = 0
+        self._gt_pieces = 0
         self._frames = 0
         self._closed = False
 
@@ -116,8 +127,9 @@ class RerunSink(Sink):
             tg, qg = pose_tq(gt_T_world_cam)
             self.rec.log("world/camera_gt", rr.Transform3D(translation=tg, quaternion=rr.Quaternion(xyzw=qg)),
                          rr.TransformAxes3D(0.1))
-            self._gt_positions.append(tg)
-            if len(self._gt_positions) % self.gt_strip_every == 0:
+            self._gt_piece.append(tg)
+            self._gt_new += 1
+            if self._gt_new == self.gt_strip_every:
                 self._log_gt_strip()
         self._frames += 1
         if self._frames % self.flush_every == 0:
@@ -126,15 +138,7 @@ class RerunSink(Sink):
     def log_frame(self, index, timestamp, rgb, intrinsics: Intrinsics, T_world_cam, depth=None,
                   normal=None, gt_T_world_cam=None, timestamp_ns=None) -> None:
         self.log_pose(index, timestamp, T_world_cam, gt_T_world_cam, timestamp_ns)
-        self.rec.log("world/camera/image", rr.Pinhole(
-            image_from_camera=intrinsics.matrix(), width=intrinsics.width, height=intrinsics.height,
-            camera_xyz=rr.ViewCoordinates.RDF))
-        self.rec.log("world/camera/image/rgb", rr.Image(rgb_to_u8(rgb)).compress(jpeg_quality=self.jpeg_quality))
-        if depth is not None:
-            self.rec.log("world/camera/image/depth", rr.DepthImage(np.asarray(depth, dtype=np.float32), meter=1.0))
-        if normal is not None:
-            self.rec.log("world/camera/image/normal",
-                         rr.Image(normal_to_u8(normal)).compress(jpeg_quality=self.jpeg_quality))
+        self._log_images("world/camera/image", intrinsics, rgb, depth, normal)
 
     def log_trajectory(self, positions, name="estimate", rotations=None) -> None:
         self._check_open()
@@ -153,8 +157,33 @@ class RerunSink(Sink):
 
     def log_beta_voxels(self, centres, beta, voxel_size) -> None:
         self._check_open()
+        # The beta values themselves ride along (an `AnyValues` column) for tools and tests.
         self.rec.log("world/beta", rr.Points3D(np.asarray(centres, dtype=np.float32),
-                                               colors=beta_colors(beta), radii=0.5 * float(voxel_size)))
+                                               colors=beta_colors(beta), radii=0.5 * float(voxel_size)),
+                     rr.AnyValues(beta=np.asarray(beta, dtype=np.float32)))
+
+    def _log_images(self, entity: str, intrinsics: Intrinsics, rgb, depth, normal) -> None:
+        self.rec.log(entity, rr.Pinhole(
+            image_from_camera=intrinsics.matrix(), width=intrinsics.width, height=intrinsics.height,
+            camera_xyz=rr.ViewCoordinates.RDF))
+        self.rec.log(f"{entity}/rgb", rr.Image(rgb_to_u8(rgb)).compress(jpeg_quality=self.jpeg_quality))
+        if depth is not None:
+            self.rec.log(f"{entity}/depth", rr.DepthImage(np.asarray(depth, dtype=np.float32), meter=1.0))
+        if normal is not None:
+            self.rec.log(f"{entity}/normal", rr.Image(normal_to_u8(normal)).compress(jpeg_quality=self.jpeg_quality))
+
+    def log_map_render(self, index, rgb, depth, normal, intrinsics: Intrinsics, T_world_cam) -> None:
+        self._check_open()
+        t, q = pose_tq(T_world_cam)
+        self.rec.log("world/map_camera", rr.Transform3D(translation=t, quaternion=rr.Quaternion(xyzw=q)))
+        self._log_images("world/map_camera/image", intrinsics, rgb, depth, normal)
+        self.rec.flush()
+
+    def log_keyframes(self, poses) -> None:
+        self._check_open()
+        poses = np.asarray(poses, dtype=np.float32).reshape(-1, 4, 4)
+        self.rec.log("world/keyframes", rr.Points3D(poses[:, :3, 3], colors=[[255, 200, 0]], radii=0.02),
+                     rr.Arrows3D(origins=poses[:, :3, 3], vectors=0.1 * poses[:, :3, 2]))
 
     def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
         self._check_open()
@@ -163,9 +192,11 @@ class RerunSink(Sink):
             self.rec.log(f"metrics/{name}", rr.Scalars(float(value)))
 
     def _log_gt_strip(self) -> None:
-        if len(self._gt_positions) > self._gt_logged:
-            self.log_trajectory(np.stack(self._gt_positions), name="gt")
-            self._gt_logged = len(self._gt_positions)
+        """The GT positions since the last piece, as the next piece (joined to the previous one)."""
+        if self._gt_new:
+            self.log_trajectory(np.stack(self._gt_piece), name=f"gt/{self._gt_pieces:05d}")
+            self._gt_pieces += 1
+            self._gt_piece, self._gt_new = self._gt_piece[-1:], 0
 
     def close(self) -> None:
         if self._closed:

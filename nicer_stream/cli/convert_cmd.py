@@ -2,8 +2,10 @@
 
 Reads OUTDIR/trajectory.tum (required), mesh.ply, renders/frame_NNNNNN.npz (rgb, depth,
 normal) and summary.json's `intrinsics` {fx, fy, cx, cy, width, height} when present.
-Trajectory line i is frame i; a frame with a render (and known intrinsics) is logged with
-its images, the others as poses only.
+A render belongs to the trajectory line with its `timestamp` (so `--stride`, `--drop` and
+`--realtime` drops do not shift it); renders written before they carried one fall back to
+line = frame index. A pose with a render (and known intrinsics) is logged with its images,
+the others as poses only.
 """
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ import numpy as np
 import typer
 
 from nicer_stream.errors import UserError
-from nicer_stream.io.output_dir import MESH_FILE, RENDERS_DIR, SUMMARY_FILE, TRAJECTORY_FILE, render_name
+from nicer_stream.io.output_dir import MESH_FILE, RENDERS_DIR, SUMMARY_FILE, TRAJECTORY_FILE
 from nicer_stream.io.trajectory import read_tum
 from nicer_stream.types import Intrinsics
 from sinks.base import Sink
@@ -82,14 +84,37 @@ def _load_render(path: Path) -> tuple[np.ndarray, np.ndarray | None, np.ndarray 
         raise UserError(f"{path}: unreadable render ({e}): it needs an 'rgb' array; delete or rewrite it") from None
 
 
+def renders_by_line(outdir: Path, times: np.ndarray) -> dict[int, tuple[int, Path]]:
+    """{trajectory line: (frame index, render path)}, matched by timestamp (to 1 us, the
+    precision trajectory.tum is written with); older renders without one by line = frame index."""
+    found: dict[int, tuple[int, Path]] = {}
+    d = outdir / RENDERS_DIR
+    for path in sorted(d.glob("frame_*.npz")) if d.is_dir() else []:
+        try:
+            with np.load(path) as z:
+                index = int(z["frame_index"]) if "frame_index" in z else int(path.stem.split("_")[1])
+                t = float(z["timestamp"]) if "timestamp" in z else None
+        except (OSError, ValueError, KeyError) as e:
+            raise UserError(f"{path}: unreadable render ({e}): delete or rewrite it") from None
+        if t is None:
+            line = index if index < len(times) else None
+        else:
+            j = int(np.argmin(np.abs(times - t))) if len(times) else 0
+            line = j if len(times) and abs(times[j] - t) < 1e-6 else None
+        if line is not None:
+            found[line] = (index, path)
+    return found
+
+
 def _log_frames(sink: Sink, outdir: Path, times: np.ndarray, poses: np.ndarray, intr: Intrinsics | None) -> int:
     """Log every pose, with its render when there is one; returns the number of frames with images."""
     images = 0
+    renders = renders_by_line(outdir, times) if intr is not None else {}
     for i, (t, T) in enumerate(zip(times, poses)):
-        render = outdir / RENDERS_DIR / render_name(i)
-        if intr is None or not render.is_file():
+        if i not in renders:
             sink.log_pose(i, float(t), T)
             continue
+        index, render = renders[i]
         rgb, depth, normal = _load_render(render)
         h, w = rgb.shape[:2]
         frame_intr = intr if (intr.width, intr.height) == (w, h) else intr.resized(w, h)

@@ -1,7 +1,10 @@
-"""`nicer-stream inspect PATH_OR_URI`: describe a .rrd recording, an .mcap file or a frame source."""
+"""`nicer-stream inspect PATH_OR_URI`: describe a .rrd recording, an .mcap file, an output
+directory (its summary and eval table) or a frame source; `--json` prints the same as JSON."""
 from __future__ import annotations
 
+import json
 from collections import Counter, defaultdict
+from dataclasses import asdict
 from pathlib import Path
 
 import typer
@@ -126,11 +129,51 @@ def describe_source(uri: str) -> list[str]:
     return lines
 
 
+def describe_outputs(path: Path) -> tuple[list[str], dict]:
+    """An output directory: what ran (summary.json), how it ended, and eval.json's table."""
+    from nicer_stream.cli.eval_cmd import format_table
+    from nicer_stream.io import output_dir as od
+
+    s = od.read_summary(path)
+    data: dict = {"kind": "outputs", "path": str(path), "summary": asdict(s), "eval": None,
+                  "files": sorted(p.name for p in path.iterdir())}
+    ended = "completed" if not s.interrupted else f"ended early{': ' + s.error if s.error else ''}"
+    lines = [f"output directory {path} ({ended})",
+             f"source {s.source}, preset {s.preset}, priors {', '.join(s.priors)}, device {s.device}",
+             f"{s.frames} frames in {s.wall_s:.0f} s ({s.seconds_per_frame:.2f} s/frame; tracking "
+             f"{s.stages_s.tracking:.0f} s, mapping {s.stages_s.mapping:.0f} s, priors {s.stages_s.priors:.0f} s, "
+             f"sinks {s.stages_s.sinks:.0f} s), peak RSS {s.peak_rss_mb:.0f} MB"]
+    lines += [f"  note: {n}" for n in s.notes]
+    lines.append("files: " + " ".join(data["files"]))
+    if (path / od.EVAL_FILE).is_file():
+        rep = od.read_eval(path)
+        data["eval"] = asdict(rep)
+        lines += format_table(rep).splitlines()
+    else:
+        lines.append(f"no {od.EVAL_FILE} (run `nicer-stream eval {path}` against a source with ground truth)")
+    return lines, data
+
+
 def describe(target: str) -> list[str]:
-    """Dispatch on what `target` is: a .rrd file, a .mcap file, or a source URI."""
-    from sources import SCHEMES
+    """Dispatch on what `target` is: a .rrd file, a .mcap file, an output directory or a source URI."""
+    return describe_with_data(target)[0]
+
+
+def describe_with_data(target: str) -> tuple[list[str], dict]:
+    """(text lines, the same as a JSON-ready dict) for `target`."""
+    from nicer_stream.io.output_dir import SUMMARY_FILE
 
     path = Path(target)
+    if path.is_dir() and (path / SUMMARY_FILE).is_file():
+        return describe_outputs(path)
+    lines = _describe_file_or_source(target, path)
+    kind = path.suffix[1:] if path.suffix in (".rrd", ".mcap") and path.is_file() else "source"
+    return lines, {"kind": kind, "target": target, "lines": lines}
+
+
+def _describe_file_or_source(target: str, path: Path) -> list[str]:
+    from sources import SCHEMES
+
     scheme = target.split(":", 1)[0] if ":" in target else None
     if path.suffix in (".rrd", ".mcap") and scheme not in SCHEMES:
         if not path.is_file():
@@ -141,11 +184,15 @@ def describe(target: str) -> list[str]:
     if not path.exists():
         raise UserError(f"{target} not found: give a .rrd or .mcap file, or a source URI "
                         f"({', '.join(s + ':PATH' for s in SCHEMES)})")
-    raise UserError(f"cannot inspect {target}: give a .rrd or .mcap file, or a source URI "
-                    f"({', '.join(s + ':PATH' for s in SCHEMES)})")
+    raise UserError(f"cannot inspect {target}: give a .rrd or .mcap file, an output directory (with "
+                    f"summary.json) or a source URI ({', '.join(s + ':PATH' for s in SCHEMES)})")
 
 
-def inspect_command(target: str) -> None:
-    """CLI entry: print the description."""
-    for line in describe(target):
+def inspect_command(target: str, as_json: bool = False) -> None:
+    """CLI entry: print the description (as JSON with `as_json`)."""
+    lines, data = describe_with_data(target)
+    if as_json:
+        typer.echo(json.dumps(data, indent=2, default=str))
+        return
+    for line in lines:
         typer.echo(line)

@@ -20,7 +20,8 @@ def _configure(log_level: str = typer.Option("info", "--log-level", help="debug,
 
     level = getattr(logging, log_level.upper(), None)
     if not isinstance(level, int):
-        raise typer.BadParameter(f"'{log_level}' is not one of debug, info, warning, error", param_hint="--log-level")
+        typer.echo(f"error: --log-level '{log_level}' is not one of debug, info, warning, error", err=True)
+        raise typer.Exit(2)
     # Other libraries stay at WARNING: --log-level is about this project's messages.
     logging.basicConfig(level=max(level, logging.WARNING), format="%(levelname)s %(name)s: %(message)s")
     for name in ("nicer_stream", "sources", "sinks"):

@@ -25,10 +25,12 @@ def run_command(
     realtime: bool = typer.Option(False, "--realtime", help="Play the log at its recorded rate, dropping frames SLAM cannot keep up with."),
     device: str = typer.Option("cpu", "--device", help="torch device, e.g. cpu or cuda."),
     render_every: int = typer.Option(10, "--render-every", help="Render (and evaluate) every N-th frame at the end; their images are kept until then."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="No per-frame lines or mapping progress: errors and the final summary only."),
+    live_mesh_every: int = typer.Option(5, "--live-mesh-every", help="With --sink: a coarse mesh every N map updates while the run goes on (0: only the final mesh)."),
 ) -> None:
     """Track every frame and map keyframes; writes trajectory.tum, mesh.ply, summary.json (+ eval.json with GT)."""
     user_errors(_run)(source, out, preset, config, priors, flow, sink, max_frames, stride, start, drop, max_side, intrinsics,
-                      realtime, device, render_every)
+                      realtime, device, render_every, live_mesh_every, quiet)
 
 
 def _resolve_sinks(sinks: list[str], out: Path) -> tuple[str, ...]:
@@ -46,14 +48,18 @@ def _resolve_sinks(sinks: list[str], out: Path) -> tuple[str, ...]:
 
 
 def _run(source, out, preset, config, priors, flow, sinks, max_frames, stride, start, drop, max_side, intrinsics, realtime,
-         device, render_every) -> None:
+         device, render_every, live_mesh_every, quiet) -> None:
     from nicer_stream.cli.run_report import evaluate_and_print
     from nicer_stream.runtime.slam_run import RunRequest, run_slam
     from sources.base import SourceOptions
 
     opts = SourceOptions(start=start, stride=stride, drop=parse_drop(drop), max_frames=max_frames, max_side=max_side,
                          intrinsics=parse_intrinsics(intrinsics))
-    out_dir = run_slam(RunRequest(source=source, out_dir=out, priors=priors, flow=flow, preset=preset, config_file=config,
-                                  sinks=_resolve_sinks(sinks, out), device=device, realtime=realtime,
-                                  render_every=render_every, source_opts=opts))
-    evaluate_and_print(out_dir, source, opts)
+    res = run_slam(RunRequest(source=source, out_dir=out, priors=priors, flow=flow, preset=preset, config_file=config,
+                              sinks=_resolve_sinks(sinks, out), device=device, realtime=realtime,
+                              render_every=render_every, live_mesh_every=live_mesh_every, quiet=quiet, source_opts=opts))
+    if res.exit_code:  # stopped or failed: the partial outputs are written; no evaluation
+        if res.error:
+            typer.echo(f"error: {res.error}", err=True)
+        raise typer.Exit(res.exit_code)
+    evaluate_and_print(res.out_dir, source, opts)

@@ -6,7 +6,8 @@ A run writes into OUT/:
 - `summary.json`    `Summary`
 - `eval.json`       `EvalReport` (when GT exists)
 - `renders/frame_NNNNNN.npz` (optional): `rgb` (H, W, 3) float32 [0, 1], `depth` (H, W)
-  float32 z-depth [m], `normal` (H, W, 3) camera frame, `frame_index` int.
+  float32 z-depth [m], `normal` (H, W, 3) camera frame, `frame_index` int, `timestamp` float
+  seconds (the frame's trajectory.tum time: `convert` matches renders to poses by it).
 Scripts read these keys: keep them stable. Non-finite floats are written as null.
 """
 from __future__ import annotations
@@ -78,6 +79,9 @@ class Summary:
     peak_rss_mb: float
     versions: dict[str, str]
     interrupted: bool
+    """True when a stop (Ctrl-C, SIGTERM) or an error ended the run before its last frame."""
+    error: str | None = None
+    """The one-line error that ended the run early, if one did."""
     bound: Bound | None = None
     notes: list[str] = field(default_factory=list)
     source: str | None = None

@@ -14,7 +14,7 @@ def write_tum(path: str | Path, timestamps: np.ndarray, poses: np.ndarray) -> No
     poses = np.asarray(poses, dtype=np.float64)
     if not np.isfinite(poses).all():
         raise ValueError("refusing to write a trajectory containing NaN/inf poses")
-    rows = pose_to_tum(torch.from_numpy(poses)).numpy()
+    rows = pose_to_tum(torch.from_numpy(poses)).numpy() if len(poses) else np.zeros((0, 7))
     with open(path, "w") as f:
         f.write("# timestamp tx ty tz qx qy qz qw (T_world_cam, OpenCV camera axes, metres)\n")
         for t, r in zip(np.asarray(timestamps, dtype=np.float64), rows):

@@ -81,11 +81,13 @@ class Mapper:
     def optimise(self, frames: list[MapFrame], poses: dict[int, torch.Tensor], iters: int,
                  ba_indices: set[int] = frozenset(), fixed_scale_shift: tuple[float, float] | None = None,
                  progress=None, time_budget_s: float | None = None,
-                 color_start: float | None = None) -> MappingStats:
+                 color_start: float | None = None, stop=None) -> MappingStats:
         """Run `iters` iterations over `frames`; poses of `ba_indices` are refined in the
         last stage and written back into `poses`. With `time_budget_s`, the iteration
         count is cut after 3 timed iterations so the schedule fits the budget. The colour
-        grids join at fraction `color_start` (default: with the poses, `ba_start`)."""
+        grids join at fraction `color_start` (default: with the poses, `ba_start`).
+        `stop()`, polled before each iteration, ends the call early (stats count the
+        iterations done)."""
         import time
 
         t0 = time.perf_counter()
@@ -98,6 +100,8 @@ class Mapper:
         loss = torch.zeros(())
         it = 0
         while it < iters:
+            if stop is not None and stop():
+                break
             if time_budget_s is not None and it == 3:
                 per_iter = (time.perf_counter() - t0) / 3
                 iters = max(4, min(iters, int(time_budget_s / per_iter)))
@@ -126,4 +130,4 @@ class Mapper:
             for i, x in xi.items():
                 poses[i] = poses[i] @ se3_exp(x.detach())
         vals = {k: float(v.detach()) for k, v in vars(terms).items() if v is not None}
-        return MappingStats(iters, float(loss.detach()), vals, time.perf_counter() - t0)
+        return MappingStats(it, float(loss.detach()), vals, time.perf_counter() - t0)

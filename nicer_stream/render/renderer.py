@@ -65,7 +65,7 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
     with torch.no_grad():
         t_probe = stratified(near, far, cfg.n_probe, jitter)
         x_probe = (o[:, None] + t_probe[..., None] * d[:, None]).reshape(-1, 3)
-        sdf_p = model.geometry(x_probe, use_fine=use_fine).sdf.reshape(r, -1)
+        sdf_p = probe_sdf(model, x_probe, use_fine).reshape(r, -1)
         sig_p = laplace_density(sdf_p, beta(x_probe).reshape(sdf_p.shape) if beta.cfg.beta_mode == "adaptive" else beta(x_probe))
         w_p = render_weights(sig_p, _composite_deltas(t_probe, far))
         mids = (t_probe[:, 1:] + t_probe[:, :-1]) / 2
@@ -87,7 +87,7 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
     else:
         # Inference: weights from the SDF alone, then normals and colour only at the
         # samples that can matter (a few per ray).
-        sdf = model.geometry(x, use_fine=use_fine).sdf
+        sdf = probe_sdf(model, x, use_fine)
         w = render_weights(laplace_density(sdf.reshape(r, s), bx), _composite_deltas(t, far))
         normal, rgb_s = x.new_zeros(x.shape[0], 3), x.new_zeros(x.shape[0], 3)
         sdf_grad = x.new_zeros(0, 3)
@@ -107,6 +107,19 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
         points=x,
         sdf_grad=sdf_grad,
     )
+
+
+# Probe points per forward pass: at the paper's sizes (8096 rays x 640 probes = 5.2M points)
+# one pass would allocate ~1.3 GB per hidden layer; chunks of this size stay in cache-sized
+# allocations. `fast` (1024 x 32) fits in one chunk.
+PROBE_CHUNK = 1 << 17
+
+
+def probe_sdf(model: SceneModel, x: torch.Tensor, use_fine: bool, chunk: int = PROBE_CHUNK) -> torch.Tensor:
+    """SDF (N,) at normalised points x (N, 3), without gradient, `chunk` points at a time."""
+    if x.shape[0] <= chunk:
+        return model.geometry(x, use_fine=use_fine).sdf
+    return torch.cat([model.geometry(x[i:i + chunk], use_fine=use_fine).sdf for i in range(0, x.shape[0], chunk)])
 
 
 def rays_for_pixels(uv: torch.Tensor, intr: Intrinsics, T_world_cam: torch.Tensor) -> RayBatch:

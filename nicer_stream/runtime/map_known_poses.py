@@ -137,7 +137,7 @@ def run_map(req: MapRequest) -> Path:
         views = sorted(set(range(0, len(frames), max(1, every))) | {len(frames) - 1})
         for k, i in enumerate(views):
             view = render_image(model, beta, poses[frames[i].index], intr, cfg.render)
-            save_render(out, frames[i].index, view, frames[i].rgb)
+            save_render(out, frames[i].index, view, frames[i].rgb, frames[i].timestamp)
             print(f"render {k + 1}/{len(views)} (frame {frames[i].index})", flush=True)
         write_trajectory(out, [f.timestamp for f in frames], list(poses_np))
         write_mesh(out, scene_mesh(model, beta, poses_np, intr, cfg))

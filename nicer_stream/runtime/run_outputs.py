@@ -28,9 +28,10 @@ def package_versions() -> dict[str, str]:
 
 
 def write_trajectory(out_dir: Path, timestamps: list[float], poses: list[np.ndarray]) -> None:
-    """trajectory.tum, one line per frame; NaN poses are refused by write_tum."""
-    if poses:
-        write_tum(Path(out_dir) / od.TRAJECTORY_FILE, np.asarray(timestamps), np.stack(poses))
+    """trajectory.tum, one line per frame with a pose (only its header when none has one yet);
+    NaN poses are refused by write_tum."""
+    write_tum(Path(out_dir) / od.TRAJECTORY_FILE, np.asarray(timestamps, dtype=np.float64),
+              np.stack(poses) if poses else np.zeros((0, 4, 4)))
 
 
 def write_mesh(out_dir: Path, mesh: trimesh.Trimesh | None) -> None:
@@ -41,13 +42,13 @@ def write_mesh(out_dir: Path, mesh: trimesh.Trimesh | None) -> None:
 
 
 def write_summary(out_dir: Path, *, frames: int, preset: str, device: str, priors: list[str], timer: StageTimer,
-                  interrupted: bool, bound: SceneBound | None, source: str, notes: list[str], intrinsics: dict | None,
+                  interrupted: bool, error: str | None = None, bound: SceneBound | None, source: str, notes: list[str], intrinsics: dict | None,
                   config: dict | None, stats: dict) -> od.Summary:
     wall = timer.total()
     s = od.Summary(
         frames=frames, preset=preset, device=device, priors=priors, wall_s=wall, stages_s=timer.seconds,
         seconds_per_frame=wall / max(frames, 1), peak_rss_mb=peak_rss_mb(), versions=package_versions(),
-        interrupted=interrupted, bound=od.Bound(**bound.to_dict()) if bound else None, notes=notes, source=source,
+        interrupted=interrupted, error=error, bound=od.Bound(**bound.to_dict()) if bound else None, notes=notes, source=source,
         intrinsics=intrinsics, config=config, stats=stats,
     )
     od.write_summary(out_dir, s)

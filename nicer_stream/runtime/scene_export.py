@@ -18,13 +18,16 @@ from nicer_stream.render.renderer import RenderedImage, render_image
 from nicer_stream.types import Intrinsics
 
 
-def save_render(out_dir: Path, index: int, view: RenderedImage, observed_rgb: np.ndarray | None = None) -> Path:
-    """Write renders/frame_NNNNNN.npz (rgb, depth, normal) and a PNG (render | input | depth | normal)."""
+def save_render(out_dir: Path, index: int, view: RenderedImage, observed_rgb: np.ndarray | None = None,
+                timestamp: float | None = None) -> Path:
+    """Write renders/frame_NNNNNN.npz (rgb, depth, normal, frame_index, timestamp [s] when given)
+    and a PNG (render | input | depth | normal)."""
     d = Path(out_dir) / RENDERS_DIR
     d.mkdir(parents=True, exist_ok=True)
     path = d / render_name(index)
     np.savez_compressed(path, rgb=view.rgb.astype(np.float32), depth=view.depth.astype(np.float32),
-                        normal=view.normal.astype(np.float32), frame_index=np.int64(index))
+                        normal=view.normal.astype(np.float32), frame_index=np.int64(index),
+                        **({} if timestamp is None else {"timestamp": np.float64(timestamp)}))
     depth = view.depth / max(float(np.percentile(view.depth, 99)), 1e-6)
     depth_rgb = cv2.applyColorMap((np.clip(depth, 0, 1) * 255).astype(np.uint8), cv2.COLORMAP_VIRIDIS)[..., ::-1] / 255.0
     normal_rgb = (1 - view.normal) / 2  # camera-frame normal facing the camera -> bright
@@ -47,16 +50,24 @@ def depth_views(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Int
     return out
 
 
-def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intrinsics, cfg: SlamConfig) -> trimesh.Trimesh:
+class MeshAborted(Exception):
+    """`scene_mesh` was asked to stop before its SDF grid was complete."""
+
+
+def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intrinsics, cfg: SlamConfig,
+               should_stop=None) -> trimesh.Trimesh:
     """Marching cubes over the bound, evaluating the full SDF only in voxels the mapping
     sampled (elsewhere the map knows nothing: treated as free space), then culled to
     the cameras' frustums and to what the rendered depth says they see (no surfaces
-    behind walls, none in space the renders see through). Vertex colours from the colour network."""
+    behind walls, none in space the renders see through). Vertex colours from the colour network.
+    `should_stop()`, polled between SDF chunks, raises MeshAborted when true."""
     resolution = cfg.mesh.resolution
     lo, hi = model.bound.world_min_max()
     observed = beta.counts > 0
 
     def sdf_fn(x: torch.Tensor) -> torch.Tensor:
+        if should_stop is not None and should_stop():
+            raise MeshAborted
         xn = model.bound.normalise(x)
         mask = observed[beta.voxel_index(xn)]
         out = torch.full((x.shape[0],), 1.0, dtype=x.dtype)

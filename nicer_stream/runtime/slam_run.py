@@ -15,12 +15,14 @@ from nicer_stream.errors import UserError
 from nicer_stream.runtime.allocator import retain_freed_memory
 from nicer_stream.runtime.checkpoint import save_scene
 from nicer_stream.runtime.frame_priors import make_engine, provider_names
+from nicer_stream.runtime.live_outputs import MESH_RESOLUTION, LiveMapOutputs, coarse_mesh
 from nicer_stream.runtime.pacer import Pacer
 from nicer_stream.runtime.prior_stage import PriorStage
 from nicer_stream.runtime.progress import Progress
 from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_trajectory
-from nicer_stream.runtime.scene_export import save_render, scene_mesh
+from nicer_stream.runtime.scene_export import MeshAborted, save_render, scene_mesh
 from nicer_stream.runtime.stage_timer import StageTimer
+from nicer_stream.runtime.stop import StopSignals
 from nicer_stream.render.renderer import render_image
 from nicer_stream.slam.events import FrameTracked, KeyframeAdded, MapUpdated
 from nicer_stream.slam.system import SlamSystem
@@ -47,10 +49,33 @@ class RunRequest:
     device: str = "cpu"
     realtime: bool = False
     render_every: int = 10
+    quiet: bool = False
+    """No per-frame lines and no mapping progress: errors and the final summary only."""
+    live_mesh_every: int = 5
+    """With a sink: a coarse mesh every this many map updates (0: only the final mesh)."""
     source_opts: SourceOptions = field(default_factory=SourceOptions)
 
 
-def run_slam(req: RunRequest) -> Path:
+@dataclass(frozen=True)
+class RunOutcome:
+    """Where the outputs are and how the run ended."""
+
+    out_dir: Path
+    exit_code: int = 0
+    """0; 130 / 143 after a stop by SIGINT / SIGTERM; 1 after an error inside a stage."""
+    error: str | None = None
+    """The one-line error that ended the run early (also in summary.json)."""
+
+
+
+def run_slam(req: RunRequest) -> RunOutcome:
+    """Run SLAM over the source and write the output directory. A stop (Ctrl-C, SIGTERM) or an
+    error inside a stage ends the loop early; every output computed so far is still written."""
+    with StopSignals() as stop:
+        return _run(req, stop)
+
+
+def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     cfg = config_mod.load(req.preset, req.config_file)
     torch.manual_seed(cfg.seed)
     retain_freed_memory()
@@ -64,13 +89,32 @@ def run_slam(req: RunRequest) -> Path:
     if engine.depth_normal.auto_reason:
         print(engine.depth_normal.auto_reason, flush=True)
     stage = PriorStage(engine)
-    slam = SlamSystem(cfg, req.device, progress=lambda label: Progress(label, MAPPING_PROGRESS_EVERY_S),
-                      stereo=engine.depth_normal.name == "stereo")
+    slam = SlamSystem(cfg, req.device,
+                      progress=None if req.quiet else lambda label: Progress(label, MAPPING_PROGRESS_EVERY_S),
+                      stereo=engine.depth_normal.name == "stereo", should_stop=lambda: stop.requested)
     from sinks import make_sink
 
     sink = make_sink(list(req.sinks)) if req.sinks else None
+    live = LiveMapOutputs(sink, slam, req.live_mesh_every) if sink is not None else None
     pacer = Pacer(req.realtime)
-    interrupted, n, intr, kept, last, waiting = False, 0, None, {}, None, {}
+    n, intr, kept, last, waiting, error = 0, None, {}, None, {}, None
+    try:
+        total = len(source)  # None for streams of unknown length
+    except TypeError:
+        total = None
+    done, t_start = 0, time.perf_counter()
+
+    def say(text: str) -> None:
+        if not req.quiet:
+            print(text, flush=True)
+
+    def status() -> str:
+        """[done/total, frames per second, ETA] for the per-frame line."""
+        rate = done / max(time.perf_counter() - t_start, 1e-9)
+        if total is None:
+            return f"[{done} done, {rate:.2f} fps]"
+        left = max(total - done, 0)
+        return f"[{done}/{total}, {rate:.2f} fps, eta {left / max(rate, 1e-9):.0f} s]"
 
     def timed(call):
         """Run one SLAM call -> (events, seconds); its mapping calls' seconds are booked as
@@ -85,20 +129,24 @@ def run_slam(req: RunRequest) -> Path:
 
     def handle(events, step_s: float, frame) -> None:
         """Progress line, kept renders and sink logging for each event."""
-        nonlocal last
+        nonlocal last, done
         # Several frames in one step (the two-view start replays the held frames): each
         # line then shows that frame's own tracking time.
         replay = sum(isinstance(e, FrameTracked) for e in events) > 1
         for e in events:
             if isinstance(e, KeyframeAdded):
                 stage.add_keyframe(waiting.get(e.index, frame))
+            if isinstance(e, MapUpdated) and live is not None and intr is not None:
+                with timer.stage("sinks"):
+                    live(e, intr)
             if isinstance(e, FrameTracked):
                 f = waiting.pop(e.index, frame)
                 kept[e.index] = f.rgb if e.index % max(1, req.render_every) == 0 else None
                 last = (e.index, f.rgb)
                 lost = f" LOST ({e.lost})" if e.lost else ""
                 secs = f"{e.seconds:.1f} s tracking" if replay else f"{step_s:.1f} s"
-                print(f"frame {e.index:5d}  track loss {e.loss:.4f}  {secs}{lost}", flush=True)
+                done += 1
+                say(f"frame {e.index:5d}  track loss {e.loss:.4f}  {secs}{lost}  {status()}")
                 if sink is not None:
                     with timer.stage("sinks"):
                         sink.log_frame(e.index, e.timestamp, f.rgb, f.intrinsics, e.T_world_cam,
@@ -107,75 +155,106 @@ def run_slam(req: RunRequest) -> Path:
                             sink.log_scalars(e.index, {"tracking_loss": e.loss, "seconds": step_s})
 
     try:
-        for frame in source:
-            if pacer.drop(frame.timestamp):
-                continue
-            intr = frame.intrinsics
-            with timer.stage("priors"):
-                pri = stage(frame)
-            events, step_s = timed(lambda: slam.step(frame.without_ground_truth(), pri))
-            n += 1
-            waiting[frame.index] = frame  # until its pose event (the two-view start holds frames)
-            if not any(isinstance(e, FrameTracked) and e.index == frame.index for e in events):
-                print(f"frame {frame.index:5d}  held for the two-view start", flush=True)
-            handle(events, step_s, frame)
-        handle(timed(slam.finish)[0], 0.0, None)
-    except KeyboardInterrupt:
-        interrupted = True
-        print("interrupted: writing what was computed so far", flush=True)
-        if slam.model is None and slam.pending:  # held for the two-view start: start from them
-            handle(timed(slam.finish)[0], 0.0, None)
-    if slam.model is None:
-        if sink is not None:
-            sink.close()
-        raise UserError(f"source {req.source} gave no frames")
-    if last is not None:  # the last frame is always rendered, as in `map`
-        kept[last[0]] = last[1]
-    timer.seconds.frontend = slam.frontend_seconds
-    if slam.stereo is not None:  # computed inside SLAM calls (booked as tracking): a prior stage
-        timer.seconds.tracking -= slam.stereo.seconds
-        timer.seconds.priors += slam.stereo.seconds
-    times, poses = slam.trajectory()
-    print(f"writing outputs: {sum(v is not None for v in kept.values())} renders and the mesh", flush=True)
-    save_scene(out, cfg, slam.model, slam.beta)
-    with timer.stage("sinks"):
+        try:
+            for frame in source:
+                if stop.requested:
+                    break
+                if pacer.drop(frame.timestamp):
+                    continue
+                intr = frame.intrinsics
+                with timer.stage("priors"):
+                    pri = stage(frame)
+                events, step_s = timed(lambda: slam.step(frame.without_ground_truth(), pri))
+                n += 1
+                waiting[frame.index] = frame  # until its pose event (the two-view start holds frames)
+                if not any(isinstance(e, FrameTracked) and e.index == frame.index for e in events):
+                    say(f"frame {frame.index:5d}  held for the two-view start  {status()}")
+                handle(events, step_s, frame)
+            if not stop.requested:
+                handle(timed(slam.finish)[0], 0.0, None)
+        except KeyboardInterrupt:  # where the handlers could not be installed (not the main thread)
+            stop.request()
+        except Exception as e:  # a stage failed: keep what was computed, report it in one line
+            error = f"{type(e).__name__}: {e}".splitlines()[0]
+            log.debug("the run stopped on an error", exc_info=True)
+            print(f"error: {error}; writing what was computed so far", flush=True)
+        if slam.model is None and error is None and not stop.requested:
+            raise UserError(f"source {req.source} gave no usable frames")
+        if stop.requested:
+            print(f"stopped by {stop.reason}: writing what was computed so far", flush=True)
+        early = stop.requested or error is not None
+        if last is not None and not early:  # the last frame is always rendered, as in `map`
+            kept[last[0]] = last[1]
+        timer.seconds.frontend = slam.frontend_seconds
+        if slam.stereo is not None:  # computed inside SLAM calls (booked as tracking): a prior stage
+            timer.seconds.tracking -= slam.stereo.seconds
+            timer.seconds.priors += slam.stereo.seconds
+
+        def summary():
+            notes = [f"scene bound from {slam.bound.source}"] if slam.bound is not None else []
+            if engine.depth_normal.auto_reason:
+                notes.append(engine.depth_normal.auto_reason)
+            if engine.depth_normal.description:
+                notes.append(f"priors: {engine.depth_normal.description}")
+            if slam.scale_rule:
+                how = slam.init_note or "its shift from the normal prior"
+                notes.append(f"metric scale: first frame's depth-prior median taken as {cfg.loss.first_depth_median_m} m; "
+                             f"shift {slam.scale_rule[1]:.4g}: {how}")
+            if pacer.dropped:
+                notes.append(f"--realtime dropped {pacer.dropped} frames (not in trajectory.tum)")
+            if stop.requested:
+                notes.append(f"stopped by {stop.reason} after {n} frames")
+            track_pf, map_pf = timer.seconds.tracking / max(n, 1), timer.seconds.mapping / max(n, 1)
+            return write_summary(
+                out, frames=n, preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
+                interrupted=early, error=error, bound=slam.bound, source=req.source, notes=notes,
+                intrinsics=intrinsics_dict(intr) if intr is not None else None,
+                config=config_mod.to_dict(cfg),
+                stats={"keyframes": len(slam.keyframes), "lost_frames": slam.lost_frames, "dropped_frames": pacer.dropped,
+                       "tracking_s_per_frame": track_pf, "mapping_s_per_frame": map_pf,
+                       "mapping_iterations": slam.mapped_iters,
+                       "skipped_corrupt_source_frames": getattr(source, "skipped_frames", 0)},
+            )
+
+        # Cheapest and most valuable first: a stop during the renders or the mesh keeps these.
+        times, poses = slam.trajectory()
         write_trajectory(out, times, poses)
-        poses_np = np.stack(poses)
-        for i, T in zip(slam.order, poses):
-            if kept.get(i) is not None:
-                view = render_image(slam.model, slam.beta, torch.as_tensor(T, dtype=torch.float32), intr, cfg.render)
-                save_render(out, i, view, kept[i])
-        mesh = scene_mesh(slam.model, slam.beta, poses_np, intr, cfg)
-        write_mesh(out, mesh)
+        if slam.model is not None:
+            save_scene(out, cfg, slam.model, slam.beta)
+        summary()
+        mapped = slam.mapped_iters > 0  # otherwise the scene is the initial sphere: no renders, no mesh
+        n_renders = sum(v is not None for v in kept.values()) if mapped and not early else 0
+        print(f"writing outputs: {n_renders} renders{' and the mesh' if mapped else ''}", flush=True)
+        with timer.stage("sinks"):
+            poses_np = np.stack(poses) if poses else np.zeros((0, 4, 4))
+            for i, t, T in zip(slam.order, times, poses):
+                if n_renders and kept.get(i) is not None and not stop.requested:
+                    view = render_image(slam.model, slam.beta, torch.as_tensor(T, dtype=torch.float32), intr, cfg.render)
+                    save_render(out, i, view, kept[i], t)
+            mesh = None
+            if mapped and len(poses):
+                try:
+                    mesh = scene_mesh(slam.model, slam.beta, poses_np, intr, cfg, should_stop=lambda: stop.requested)
+                except MeshAborted:  # a stop during the full mesh: a coarse one in a second or two
+                    print(f"mesh extraction stopped: writing a coarse mesh ({MESH_RESOLUTION}^3) instead", flush=True)
+                    mesh = coarse_mesh(slam, poses_np, intr)
+            write_mesh(out, mesh)
+            if sink is not None:
+                if len(poses):
+                    sink.log_trajectory(poses_np[:, :3, 3], rotations=poses_np[:, :3, :3])
+                if mesh is not None and len(mesh.faces):
+                    sink.log_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), np.asarray(mesh.visual.vertex_colors)[:, :3])
+                if mapped:
+                    centres, betas = slam.beta.voxel_betas()
+                    world = slam.model.bound.denormalise(centres.to(torch.float32)).cpu().numpy()
+                    sink.log_beta_voxels(world, betas.cpu().numpy(), 2 * slam.model.bound.half_extent / slam.cfg.render.beta_voxels)
+    finally:
         if sink is not None:
-            sink.log_trajectory(poses_np[:, :3, 3], rotations=poses_np[:, :3, :3])
-            if len(mesh.faces):
-                sink.log_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces), np.asarray(mesh.visual.vertex_colors)[:, :3])
-            centres, betas = slam.beta.voxel_betas()
-            world = slam.model.bound.denormalise(centres.to(torch.float32)).cpu().numpy()
-            sink.log_beta_voxels(world, betas.cpu().numpy(), 2 * slam.model.bound.half_extent / slam.cfg.render.beta_voxels)
             sink.close()
-    notes = [f"scene bound from {slam.bound.source}"]
-    if engine.depth_normal.auto_reason:
-        notes.append(engine.depth_normal.auto_reason)
-    if engine.depth_normal.description:
-        notes.append(f"priors: {engine.depth_normal.description}")
-    if slam.scale_rule:
-        how = slam.init_note or "its shift from the normal prior"
-        notes.append(f"metric scale: first frame's depth-prior median taken as {cfg.loss.first_depth_median_m} m; "
-                     f"shift {slam.scale_rule[1]:.4g}: {how}")
-    if pacer.dropped:
-        notes.append(f"--realtime dropped {pacer.dropped} frames (not in trajectory.tum)")
-    track_pf, map_pf = timer.seconds.tracking / max(n, 1), timer.seconds.mapping / max(n, 1)
-    s = write_summary(
-        out, frames=n, preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
-        interrupted=interrupted, bound=slam.bound, source=req.source, notes=notes,
-        intrinsics=intrinsics_dict(intr),
-        config=config_mod.to_dict(cfg),
-        stats={"keyframes": len(slam.keyframes), "lost_frames": slam.lost_frames, "dropped_frames": pacer.dropped,
-               "tracking_s_per_frame": track_pf, "mapping_s_per_frame": map_pf,
-               "skipped_corrupt_source_frames": getattr(source, "skipped_frames", 0)},
-    )
-    print(f"{n} frames in {s.wall_s:.0f} s ({s.seconds_per_frame:.1f} s/frame: tracking {track_pf:.1f}, "
-          f"mapping {map_pf:.1f}); {len(slam.lost_frames)} lost; outputs in {out}", flush=True)
-    return out
+    early = early or stop.requested  # a stop during the renders or the mesh
+    s = summary()
+    print(f"{n} frames in {s.wall_s:.0f} s ({s.seconds_per_frame:.1f} s/frame: tracking "
+          f"{s.stats['tracking_s_per_frame']:.1f}, mapping {s.stats['mapping_s_per_frame']:.1f}); "
+          f"{len(slam.lost_frames)} lost; outputs in {out}", flush=True)
+    code = stop.exit_code if stop.requested else (1 if error is not None else 0)
+    return RunOutcome(out, code, error)

@@ -1,7 +1,7 @@
 """Typed events emitted by the SLAM system (consumed by sinks, progress, the CLI)."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -26,13 +26,15 @@ class KeyframeAdded:
 
 @dataclass(frozen=True)
 class MapUpdated:
-    """A mapping call finished over `window` frame indices."""
+    """A mapping call finished over `window` frame indices (`iters` done: fewer after a stop)."""
 
     index: int
     window: tuple[int, ...]
     loss: float
     iters: int
     seconds: float
+    terms: dict[str, float] = field(default_factory=dict)
+    """The last iteration's loss terms (unweighted), by name."""
 
 
 Event = FrameTracked | KeyframeAdded | MapUpdated

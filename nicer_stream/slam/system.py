@@ -60,7 +60,7 @@ class SlamSystem:
 
     def __init__(self, cfg: SlamConfig, device: str = "cpu",
                  progress: Callable[[str], MappingProgress | None] | None = None,
-                 stereo: bool = False) -> None:
+                 stereo: bool = False, should_stop: Callable[[], bool] | None = None) -> None:
         if cfg.loss.slam_prior_alignment not in ("lstsq", "map", "flow"):
             raise UserError(f"loss.slam_prior_alignment must be lstsq, map or flow, got {cfg.loss.slam_prior_alignment!r}")
         if cfg.tracking.init not in ("previous", "constant_velocity", "flow"):
@@ -77,6 +77,10 @@ class SlamSystem:
         # `--priors stereo`: keyframe depth/normal priors by plane sweep before each mapping call.
         self.stereo = StereoPriors(cfg.stereo) if stereo else None
         self.progress = progress
+        # Polled by mapping iterations and between the held frames of the two-view start:
+        # a stop request ends them early (the caller then writes what exists).
+        self.should_stop = should_stop or (lambda: False)
+        self.mapped_iters = 0  # mapping iterations done (0: the scene is still the initial sphere)
         self.rng = random.Random(cfg.seed)
         self.model: SceneModel | None = None
         self.beta: BetaField | None = None
@@ -235,12 +239,14 @@ class SlamSystem:
         label = f"first mapping (frame{'s' if second else ''} {','.join(str(f.index) for f in window)})"
         stats = self.mapper.optimise(window, self.poses, cfg.mapping.first_iters,
                                      fixed_scale_shift=None if view is not None else self.scale_rule,
-                                     progress=self._progress(label), color_start=cfg.mapping.batch_color_start)
+                                     progress=self._progress(label), color_start=cfg.mapping.batch_color_start,
+                                     stop=self.should_stop)
+        self.mapped_iters += stats.iters
         if cfg.loss.slam_prior_alignment == "map" and view is None:
             mf.depth_scale_shift = self.scale_rule
         return [
             FrameTracked(mf.index, mf.timestamp, T0.double().cpu().numpy(), 0.0, 0.0),
-            MapUpdated(mf.index, tuple(f.index for f in window), stats.loss, stats.iters, stats.seconds),
+            MapUpdated(mf.index, tuple(f.index for f in window), stats.loss, stats.iters, stats.seconds, stats.terms),
         ]
 
     def _start_two_view(self, mf: MapFrame | None, frame: Frame | None) -> list[Event]:
@@ -271,6 +277,8 @@ class SlamSystem:
         events += self._record(first, held[0][1])  # a keyframe since it was held
         for m, f in held[1:]:
             known = self.poses[m.index] if (view is not None and m is last) else None
+            if known is None and self.should_stop():
+                continue  # stopping: no tracking; the frames with a pose are kept
             events += self._advance(m, f, known)
         return events
 
@@ -365,8 +373,9 @@ class SlamSystem:
             self._align_by_flow(window)
         label = f"{'closing mapping' if closing else 'mapping'} @ frame {current}"
         stats = self.mapper.optimise([self.frames[k] for k in window], self.poses, iters, ba_indices=ba,
-                                     progress=self._progress(label))
-        return MapUpdated(current, tuple(window), stats.loss, stats.iters, stats.seconds)
+                                     progress=self._progress(label), stop=self.should_stop)
+        self.mapped_iters += stats.iters
+        return MapUpdated(current, tuple(window), stats.loss, stats.iters, stats.seconds, stats.terms)
 
     def _align_by_flow(self, window: list[int]) -> None:
         """(w, q) of each window frame by flow triangulation with the current pose estimates

@@ -1,20 +1,18 @@
 """McapSink: write a short recording, decode it with the protobuf decoder, check every topic."""
 from __future__ import annotations
 
-from collections import defaultdict
 
 import cv2
 import numpy as np
 import pytest
 import torch
-from mcap.reader import make_reader
-from mcap_protobuf.decoder import DecoderFactory
 
 from nicer_stream.geometry.se3 import quat_to_matrix, se3_exp
 from nicer_stream.types import Intrinsics
 from sinks import MultiSink, make_sink
 from sinks.base import Sink
 from sinks.mcap_sink import McapSink
+from sinks.readback import read_mcap
 
 INTR = Intrinsics(fx=20.0, fy=22.0, cx=7.5, cy=5.25, width=16, height=12)
 T0_NS = 1_700_000_000_123_456_789
@@ -30,15 +28,6 @@ def random_poses(n: int, seed: int) -> np.ndarray:
 def smooth_rgb(i: int) -> np.ndarray:
     v, u = np.mgrid[0:12, 0:16].astype(np.float32)
     return np.stack([u / 15, v / 11, np.full_like(u, 0.2 + 0.2 * i)], -1)
-
-
-def read_mcap(path) -> dict[str, list]:
-    """topic -> [(log_time, decoded message)] in file order."""
-    out = defaultdict(list)
-    with open(path, "rb") as f:
-        for _, ch, msg, dec in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
-            out[ch.topic].append((msg.log_time, dec))
-    return out
 
 
 def pose_matrix(p) -> np.ndarray:
@@ -169,6 +158,8 @@ class _FailingClose(Sink):
     def log_trajectory(self, *a, **k): pass
     def log_mesh(self, *a, **k): pass
     def log_beta_voxels(self, *a, **k): pass
+    def log_map_render(self, *a, **k): pass
+    def log_keyframes(self, *a, **k): pass
     def log_scalars(self, *a, **k): pass
     def close(self): raise OSError("disk full")
 

@@ -2,19 +2,17 @@
 from __future__ import annotations
 
 import sys
-from collections import defaultdict
 
 import cv2
 import numpy as np
-import pyarrow as pa
 import pytest
 import torch
-from rerun.chunk import RrdReader
 
 from nicer_stream.errors import UserError
 from nicer_stream.geometry.se3 import quat_to_matrix, se3_exp
 from nicer_stream.types import Intrinsics
 from sinks import make_sink
+from sinks.readback import read_rrd_columns as read_columns
 from sinks.rerun_sink import RerunSink
 
 INTR = Intrinsics(fx=20.0, fy=22.0, cx=7.5, cy=5.25, width=16, height=12)
@@ -52,19 +50,6 @@ def write_recording(path, poses) -> None:
     sink.close()
 
 
-def read_columns(path) -> dict[str, dict[str, list]]:
-    """entity path -> column name -> values of all rows (timestamps as int64 ns)."""
-    out: dict[str, dict[str, list]] = defaultdict(lambda: defaultdict(list))
-    for ch in RrdReader(path).stream():
-        rb = ch.to_record_batch()
-        for name in rb.schema.names:
-            col = rb.column(name)
-            if pa.types.is_timestamp(col.type):
-                col = col.cast(pa.int64())
-            out[ch.entity_path][name].extend(col.to_pylist())
-    return out
-
-
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory):
     path = tmp_path_factory.mktemp("rr") / "run.rrd"
@@ -77,7 +62,7 @@ def test_entities_present(recording):
     cols, _ = recording
     for e in ["/world/camera", "/world/camera/image", "/world/camera/image/rgb", "/world/camera/image/depth",
               "/world/camera/image/normal", "/world/camera_gt", "/world/trajectory/estimate",
-              "/world/trajectory/gt", "/world/mesh", "/world/beta", "/metrics/loss", "/metrics/psnr_db"]:
+              "/world/trajectory/gt/00000", "/world/mesh", "/world/beta", "/metrics/loss", "/metrics/psnr_db"]:
         assert e in cols, e
 
 
@@ -129,8 +114,25 @@ def test_scalars_and_trajectories(recording):
     assert cols["/metrics/loss"]["frame"] == [0, 1, 2]
     strip = np.asarray(cols["/world/trajectory/estimate"]["LineStrips3D:strips"][0][0])
     np.testing.assert_allclose(strip, poses[:, :3, 3], atol=1e-5)
-    gt = np.asarray(cols["/world/trajectory/gt"]["LineStrips3D:strips"][-1][0])
+    gt = np.asarray(cols["/world/trajectory/gt/00000"]["LineStrips3D:strips"][-1][0])
     np.testing.assert_allclose(gt, poses[:, :3, 3], atol=1e-5)  # gt strip written at close
+
+
+def test_gt_trajectory_is_logged_in_joined_pieces_linear_in_frames(tmp_path):
+    poses = random_poses(7, seed=3)
+    sink = RerunSink(tmp_path / "gt.rrd", log_time=False, gt_strip_every=3)
+    for i, T in enumerate(poses):
+        sink.log_pose(i, 0.1 * i, T, gt_T_world_cam=T)
+    sink.close()
+    cols = read_columns(tmp_path / "gt.rrd")
+    names = sorted(e for e in cols if e.startswith("/world/trajectory/gt/"))
+    pieces = [np.asarray(cols[e]["LineStrips3D:strips"][-1][0]) for e in names]
+    assert [len(p) for p in pieces] == [3, 4, 2]  # 3 new points each (+ the joint), the rest at close
+    for a, b in zip(pieces, pieces[1:]):
+        np.testing.assert_array_equal(a[-1], b[0])
+    joined = np.concatenate([pieces[0]] + [p[1:] for p in pieces[1:]])
+    np.testing.assert_allclose(joined, poses[:, :3, 3], atol=1e-5)
+    assert cols[names[1]]["frame"] == [5]  # logged when its last frame came
 
 
 def test_close_twice_and_log_after_close(tmp_path):

@@ -88,6 +88,22 @@ def test_convert_with_render_and_intrinsics(outdir):
     assert again.exit_code == 2 and "--force" in again.stderr and again.stderr.count("\n") == 1
 
 
+def test_convert_matches_renders_to_poses_by_timestamp(outdir):
+    """After `--stride 2` frame 4 is trajectory line 2: its render goes with TIMES[2], not line 4."""
+    intr = Intrinsics(30.0, 31.0, 15.5, 11.5, 32, 24)
+    (outdir / "summary.json").write_text(json.dumps({"intrinsics": {
+        "fx": intr.fx, "fy": intr.fy, "cx": intr.cx, "cy": intr.cy, "width": intr.width, "height": intr.height}}))
+    (outdir / "renders").mkdir()
+    rgb = np.full((24, 32, 3), 0.5, np.float32)
+    for index, t in ((2, TIMES[1]), (4, TIMES[2])):
+        np.savez(outdir / "renders" / f"frame_{index:06d}.npz", rgb=rgb, frame_index=np.int64(index),
+                 timestamp=np.float64(t))
+    res = runner.invoke(app, ["convert", str(outdir)])
+    assert res.exit_code == 0, res.output
+    msgs = _read(outdir / "recording.mcap")
+    assert [t for t, _ in msgs["/camera/image"]] == [int(TIMES[1] * 1e9), int(TIMES[2] * 1e9)]
+
+
 def test_convert_to_rrd_then_inspect(outdir):
     rrd = outdir / "x.rrd"
     assert runner.invoke(app, ["convert", str(outdir), "--to", "rrd", "--out", str(rrd)]).exit_code == 0
@@ -151,3 +167,28 @@ def test_inspect_unfinalised_mcap(tmp_path):
     assert "ends early" in res.stdout
     rows = {ln.split()[0]: ln.split() for ln in res.stdout.splitlines() if ln.startswith("  /")}
     assert rows["/tf"][1] == "4" and rows["/camera/image"][1] == "2"
+
+
+def test_inspect_output_directory_text_and_json(outdir):
+    from nicer_stream.io import output_dir as od
+
+    od.write_summary(outdir, od.Summary(
+        frames=3, preset="fast", device="cpu", priors=["stereo"], wall_s=12.0, stages_s=od.StageSeconds(mapping=9.0),
+        seconds_per_frame=4.0, peak_rss_mb=100.0, versions={}, interrupted=True, error="RuntimeError: boom",
+        source="synthetic:room", notes=["scene bound from depth"]))
+    od.write_eval(outdir, od.EvalReport(ate_rmse_m=0.0123, psnr_db=27.5))
+    res = runner.invoke(app, ["inspect", str(outdir)])
+    assert res.exit_code == 0, res.output
+    assert "ended early: RuntimeError: boom" in res.stdout and "3 frames in 12 s" in res.stdout
+    assert "27.5" in res.stdout and "note: scene bound from depth" in res.stdout
+    res = runner.invoke(app, ["inspect", str(outdir), "--json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.stdout)
+    assert data["kind"] == "outputs" and data["summary"]["frames"] == 3
+    assert data["eval"]["ate_rmse_m"] == pytest.approx(0.0123) and "trajectory.tum" in data["files"]
+
+
+def test_inspect_json_of_a_recording(outdir):
+    runner.invoke(app, ["convert", str(outdir), "--to", "mcap", "--out", str(outdir / "x.mcap")])
+    data = json.loads(runner.invoke(app, ["inspect", str(outdir / "x.mcap"), "--json"]).stdout)
+    assert data["kind"] == "mcap" and any("/camera/pose" in line for line in data["lines"])

@@ -12,7 +12,7 @@ from nicer_stream.geometry.se3 import make_pose, se3_exp, so3_exp
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
-from nicer_stream.render.renderer import RayBatch, render_image, render_rays, rays_for_pixels
+from nicer_stream.render.renderer import RayBatch, probe_sdf, render_image, render_rays, rays_for_pixels
 from nicer_stream.types import Intrinsics
 
 SMALL = ModelConfig(coarse_res=16, fine_levels=2, fine_res_min=16, fine_res_max=32, color_levels=2,
@@ -191,3 +191,12 @@ def test_depth_only_render_keeps_depth_and_opacity():
     depth = render_image(model, beta, T, INTR, RC, depth_only=True)
     assert np.array_equal(full.depth, depth.depth) and np.array_equal(full.opacity, depth.opacity)
     assert (depth.rgb == 0).all() and (depth.normal == 0).all() and (full.rgb > 0).any()
+
+
+def test_probe_sdf_in_chunks_equals_one_pass():
+    model = _model()
+    x = torch.rand(1000, 3) * 2 - 1
+    with torch.no_grad():
+        whole = model.geometry(x).sdf
+        assert torch.allclose(probe_sdf(model, x, True, chunk=64), whole, atol=1e-6)
+        assert torch.equal(probe_sdf(model, x, True), whole)  # one chunk: the same call

@@ -15,7 +15,7 @@ from sources.base import SourceOptions
 def test_run_writes_the_output_contract(tmp_path, tiny_config, capsys):
     cfg = tiny_config
     out = run_slam(RunRequest(source="synthetic:room?frames=6", out_dir=tmp_path / "out", priors="oracle",
-                              preset="fast", config_file=str(cfg), sinks=(f"rerun:{tmp_path / 'rec.rrd'}",)))
+                              preset="fast", config_file=str(cfg), sinks=(f"rerun:{tmp_path / 'rec.rrd'}",))).out_dir
     t, poses = read_tum(out / od.TRAJECTORY_FILE)
     assert len(t) == 6 and np.all(np.diff(t) > 0)  # input order, though the two-view start holds frames
     assert np.allclose(poses[0], np.eye(4), atol=1e-6)  # the first pose is the identity
@@ -37,7 +37,8 @@ def test_run_writes_the_output_contract(tmp_path, tiny_config, capsys):
     # One progress line per frame; replayed held frames show their own tracking time.
     lines = [ln for ln in capsys.readouterr().out.splitlines() if "track loss" in ln]
     assert [int(ln.split()[1]) for ln in lines] == list(range(6))
-    assert all(ln.endswith("s tracking") for ln in lines)
+    assert all("s tracking" in ln for ln in lines)
+    assert lines[-1].endswith("[6/6, " + lines[-1].split("[6/6, ")[1]) and "eta 0 s]" in lines[-1]
 
 
 @pytest.mark.parametrize("priors", ["none", "oracle"])  # oracle: the NaN frame is among those held
@@ -63,7 +64,7 @@ def test_nan_frame_does_not_reach_outputs(tmp_path, monkeypatch, tiny_config, pr
     monkeypatch.setattr(synth, "open", open_with_nan)
     cfg = tiny_config
     out = run_slam(RunRequest(source="synthetic:room?frames=5", out_dir=tmp_path / "out", priors=priors,
-                              flow="none" if priors == "none" else "oracle", config_file=str(cfg)))
+                              flow="none" if priors == "none" else "oracle", config_file=str(cfg))).out_dir
     t, poses = read_tum(out / od.TRAJECTORY_FILE)
     assert len(t) == 5 and np.isfinite(poses).all() and np.all(np.diff(t) > 0)
     summary = json.loads((out / od.SUMMARY_FILE).read_text())
@@ -94,7 +95,7 @@ def test_run_with_prior_cache_equals_run_with_its_provider(tmp_path, tiny_config
     runs = {}
     for name, pri, flow in (("direct", "oracle", "oracle"), ("cached", f"cache:{cache}", f"cache:{cache}")):
         out = run_slam(RunRequest(source="synthetic:room?frames=5", out_dir=tmp_path / name, priors=pri, flow=flow,
-                                  config_file=str(tiny_config)))
+                                  config_file=str(tiny_config))).out_dir
         runs[name] = read_tum(out / od.TRAJECTORY_FILE)[1]
     assert np.array_equal(runs["direct"], runs["cached"])
     summary = json.loads((tmp_path / "cached" / od.SUMMARY_FILE).read_text())

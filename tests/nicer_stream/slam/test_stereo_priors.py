@@ -62,7 +62,7 @@ def test_a_source_without_any_ground_truth_runs_through_auto_to_the_end(tmp_path
         k = f.intrinsics
     (d / "intrinsics.txt").write_text(f"{k.fx} {k.fy} {k.cx} {k.cy}\n")
     out = run_slam(RunRequest(source=f"folder:{d}", out_dir=tmp_path / "out", priors="auto",
-                              config_file=str(tiny_config)))
+                              config_file=str(tiny_config))).out_dir
     import json
 
     s = json.loads((out / "summary.json").read_text())
