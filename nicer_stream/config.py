@@ -146,6 +146,10 @@ class MappingConfig:
     """Map every this many frames."""
     keyframe_every: int = 10
     """Add a keyframe every this many frames."""
+    full_res_keyframes: int = 64
+    """Keyframes kept at full resolution in RAM (the newest, and the first); older ones are
+    kept at half resolution without their flows (`MapFrame.halved`: ~1/6 of the memory), so a
+    long sequence's memory grows slowly. 0: all at full resolution."""
     window_random: int = 5
     """Window frames drawn at random from all keyframes."""
     window_recent: int = 10

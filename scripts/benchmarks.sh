@@ -59,6 +59,9 @@ case "${1:-all}" in
              # SOURCE=synthetic:room?frames=40 DROP=18:23 for the demo room)
              t $NS run --source "${SOURCE:-$REPLICA}" --priors oracle --preset fast --drop "${DROP:-8:13}" ${CONFIG:+--config $CONFIG} --out $OUT/run_jump ;;
   run-synth) t $NS run --source "synthetic:room?frames=100" --priors oracle --preset fast --out $OUT/run_synth ;;
+  memory)    # issue 15: RSS at frames 250 / 500 / 1000 of a cheap 1,000-frame run, with the keyframe cap and without
+             .venv/bin/python scripts/memory_bench.py --out $OUT/mem_capped
+             .venv/bin/python scripts/memory_bench.py --out $OUT/mem_uncapped --mapping-extra 'full_res_keyframes = 0' ;;
   iters)     # per-iteration costs (mapping, tracking) with FLOPs and sgemm: BASE's code at fast sizes
              # (needs the worktree of `speedup`), then this tree at fast and paper sizes
              wt=$(realpath "$OUT")/base_worktree
@@ -78,5 +81,5 @@ case "${1:-all}" in
              speedup_run "$PWD" "$out/speedup_new" oracle:clean
              .venv/bin/python scripts/speedup_table.py "$out/speedup_base" "$out/speedup_new" \
                --labels "$(git rev-parse --short "$base")" "$new" ;;
-  *) echo "usage: [BASE=commit] [EXTRA=args] $0 map|map-none|map-paper|map-synth|run|run-seeds|run-none|run10|run10-paper|run-synth|flow|speedup|iters [OUTROOT]"; exit 2 ;;
+  *) echo "usage: [BASE=commit] [EXTRA=args] $0 map|map-none|map-paper|map-synth|run|run-seeds|run-none|run10|run10-paper|run-synth|flow|speedup|iters|memory [OUTROOT]"; exit 2 ;;
 esac

@@ -39,12 +39,12 @@ def register(app: typer.Typer) -> None:
 
     @app.command("convert")
     def convert(
-        outdir: str = typer.Argument(..., help="Output directory of a run (trajectory.tum, mesh.ply, renders/, summary.json)."),
+        outdir: str = typer.Argument(..., help="Output directory of a run (trajectory.tum, mesh.ply, renders/, summary.json), or a run's .rrd recording (to MCAP)."),
         to: str = typer.Option("mcap", "--to", help="Output format: mcap or rrd."),
         out: str = typer.Option(None, "--out", help="Output file (default OUTDIR/recording.mcap or .rrd)."),
         force: bool = typer.Option(False, "--force", help="Overwrite an existing output file."),
     ) -> None:
-        """Convert an output directory to an MCAP (Foxglove) or Rerun recording."""
+        """Convert an output directory to an MCAP (Foxglove) or Rerun recording, or a run's .rrd to MCAP."""
         from pathlib import Path
 
         from nicer_stream.cli.common import user_errors

@@ -1,4 +1,5 @@
-"""`nicer-stream convert OUTDIR --to mcap|rrd [--out FILE]`: replay an output directory into a sink.
+"""`nicer-stream convert OUTDIR|FILE.rrd --to mcap|rrd [--out FILE]`: replay an output directory
+(or a Rerun recording, into MCAP) into a sink.
 
 Reads OUTDIR/trajectory.tum (required), mesh.ply, renders/frame_NNNNNN.npz (rgb, depth,
 normal) and summary.json's `intrinsics` {fx, fy, cx, cy, width, height} when present.
@@ -163,9 +164,59 @@ def convert_outputs(outdir: Path, to: str = "mcap", out: Path | None = None, for
                          None if mesh is None else len(mesh[1]), n_renders if intr is None else 0)
 
 
+def _rrd_poses(cols: dict, entity: str = "/world/camera") -> tuple[list[int], list[int | None], np.ndarray]:
+    """An entity's Transform3D rows -> frame indices, sensor times (ns, or None), poses (N, 4, 4)."""
+    import torch
+
+    from nicer_stream.geometry.se3 import quat_to_matrix
+
+    cam = cols.get(entity, {})
+    trans, quats = cam.get("Transform3D:translation", []), cam.get("Transform3D:quaternion", [])
+    frames = cam.get("frame", [None] * len(trans))
+    times = cam.get("sensor_time", [None] * len(trans))
+    poses = np.tile(np.eye(4), (len(trans), 1, 1))
+    for k, (t, q) in enumerate(zip(trans, quats)):
+        poses[k, :3, 3] = t[0]
+        poses[k, :3, :3] = quat_to_matrix(torch.tensor(q[0], dtype=torch.float64)).numpy()
+    return [int(f) if f is not None else k for k, f in enumerate(frames)], times, poses
+
+
+def convert_rrd(path: Path, out: Path | None = None, force: bool = False) -> ConvertResult:
+    """A Rerun recording written by the run's sink -> MCAP: every camera pose (with the ground
+    truth pose where it was logged), the estimated trajectory and the last mesh."""
+    from sinks.readback import read_rrd_columns
+
+    out = _resolve_out(path.parent, "mcap", out if out is not None else path.with_suffix(".mcap"), force)
+    try:
+        cols = read_rrd_columns(path)
+    except (RuntimeError, ValueError, OSError) as e:
+        raise UserError(f"cannot read {path} as a Rerun recording ({str(e).splitlines()[0]}): "
+                        "is it a .rrd written by nicer-stream?") from None
+    frames, times, poses = _rrd_poses(cols)
+    if not len(poses):
+        raise UserError(f"{path} has no /world/camera poses: is it a recording of a nicer-stream run?")
+    gt_frames, _, gt_poses = _rrd_poses(cols, "/world/camera_gt")
+    gt = dict(zip(gt_frames, gt_poses))
+    mesh_rows = cols.get("/world/mesh", {})
+    with _open_sink("mcap", out) as sink:
+        for f, ns, T in zip(frames, times, poses):
+            sink.log_pose(f, 0.0 if ns is None else ns / 1e9, T, gt_T_world_cam=gt.get(f), timestamp_ns=ns)
+        sink.log_trajectory(poses[:, :3, 3], "estimate", rotations=poses[:, :3, :3])
+        verts = mesh_rows.get("Mesh3D:vertex_positions", [])
+        if verts:
+            faces = np.asarray(mesh_rows["Mesh3D:triangle_indices"][-1], dtype=np.int64).reshape(-1, 3)
+            sink.log_mesh(np.asarray(verts[-1], dtype=np.float64), faces)
+    return ConvertResult(out, len(poses), 0, len(verts[-1]) if verts else None, len(faces) if verts else None)
+
+
 def convert_command(outdir: Path, to: str, out: Path | None, force: bool) -> None:
     """CLI entry: convert and print one summary line."""
-    r = convert_outputs(outdir, to, out, force)
+    if outdir.suffix == ".rrd" and outdir.is_file():
+        if to != "mcap":
+            raise UserError(f"{outdir} is already a Rerun recording: convert it --to mcap")
+        r = convert_rrd(outdir, out, force)
+    else:
+        r = convert_outputs(outdir, to, out, force)
     mesh = "no mesh" if r.mesh_faces is None else f"mesh {r.mesh_vertices} vertices / {r.mesh_faces} faces"
     typer.echo(f"wrote {r.out}: {r.poses} poses, {r.images} frames with images, {mesh}")
     if r.renders_without_intrinsics:

@@ -114,7 +114,8 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
         if total is None:
             return f"[{done} done, {rate:.2f} fps]"
         left = max(total - done, 0)
-        return f"[{done}/{total}, {rate:.2f} fps, eta {left / max(rate, 1e-9):.0f} s]"
+        eta = f"{left / rate:.0f} s" if done else "?"  # no pose yet (the two-view start holds frames)
+        return f"[{done}/{total}, {rate:.2f} fps, eta {eta}]"
 
     def timed(call):
         """Run one SLAM call -> (events, seconds); its mapping calls' seconds are booked as

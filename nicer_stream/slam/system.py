@@ -104,6 +104,7 @@ class SlamSystem:
         self.frontend_seconds = 0.0
         self._fview = None  # (frame index, frontend two-view result) of the start without priors
         self._frontend_kept: set[int] = set()  # lost frames whose pose is the frontend's
+        self._halved: set[int] = set()  # keyframes kept at half resolution (`full_res_keyframes`)
 
     # -- per frame -------------------------------------------------------------------
     def step(self, frame: Frame, priors: Priors | None = None) -> list[Event]:
@@ -180,6 +181,7 @@ class SlamSystem:
         if is_kf and trusted and i not in self.keyframes:
             self.keyframes.append(i)
             events.append(KeyframeAdded(i))
+            self._cap_keyframes()
         if trusted and len(self.order) > 1 and (len(self.order) - 1) % self.cfg.mapping.every == 0:
             events.append(self._map(i, self.cfg.mapping.iters))
         return events
@@ -396,6 +398,19 @@ class SlamSystem:
         for f in self.frames.values():  # flows to dropped frames would pile up in keyframes
             for j in [j for j in f.flows if j not in self.frames]:
                 del f.flows[j]
+
+
+    def _cap_keyframes(self) -> None:
+        """Bounded memory: keyframes older than the newest `full_res_keyframes` at half resolution."""
+        cap = self.cfg.mapping.full_res_keyframes
+        if cap <= 0:
+            return
+        for k in self.keyframes[:-cap]:
+            if k != self.order[0] and k in self.frames and k not in self._halved:
+                self.frames[k] = self.frames[k].halved()
+                self._halved.add(k)
+                for f in self.frames.values():  # flows into it are in full-resolution pixels
+                    f.flows.pop(k, None)
 
     # -- results ---------------------------------------------------------------------
     def trajectory(self) -> tuple[list[float], list[np.ndarray]]:

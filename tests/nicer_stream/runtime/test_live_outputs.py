@@ -52,3 +52,12 @@ def test_live_outputs_reach_both_sinks_while_the_run_goes_on(tmp_path, tiny_conf
     assert msgs["/map/image"] and msgs["/map/image"][0][0] < last_ns
     assert msgs["/keyframes"] and len(msgs["/keyframes"][-1][1].poses) >= 2
     assert len(msgs["/mesh"]) >= 2
+    # `convert` of the .rrd gives the MCAP sink's poses, at the same times.
+    from nicer_stream.cli.convert_cmd import convert_rrd
+
+    conv = read_mcap(convert_rrd(rrd, tmp_path / "from_rrd.mcap").out)
+    assert [t for t, _ in conv["/camera/pose"]] == [t for t, _ in msgs["/camera/pose"]]
+    for (_, a), (_, b) in zip(conv["/camera/pose"], msgs["/camera/pose"]):
+        pa, pb = a.pose.position, b.pose.position
+        assert np.allclose([pa.x, pa.y, pa.z], [pb.x, pb.y, pb.z], atol=1e-5)  # .rrd keeps float32
+    assert len(conv["/camera/gt_pose"]) == FRAMES  # the synthetic source has GT: logged under its own name

@@ -40,3 +40,19 @@ def test_every_mapping_call_reports_progress_under_its_label(tiny_config):
                            "closing mapping @ frame 4"]
     for (label, got), e in zip(calls.items(), maps):  # one call per iteration, from the first one on
         assert got == [(i, e.iters) for i in range(e.iters)], label
+
+
+def test_old_keyframes_are_kept_at_half_resolution(tiny_config):
+    cfg = load("fast", tiny_config)  # keyframes every 2 frames
+    slam = SlamSystem(replace(cfg, mapping=replace(cfg.mapping, full_res_keyframes=1)))
+    for f in open_source("synthetic:room?frames=9", SourceOptions(max_side=32)):
+        slam.step(f.without_ground_truth())
+    slam.finish()  # mapping windows drew halved keyframes too
+    kf = [k for k in slam.keyframes if k in slam.frames]
+    full = slam.frames[slam.order[0]].rgb.shape
+    newest = slam.frames[kf[-1]].rgb.shape
+    assert newest == full
+    old = [k for k in kf[:-1] if k != slam.order[0]]
+    assert old and all(slam.frames[k].rgb.shape[0] == full[0] // 2 for k in old)
+    assert all(not slam.frames[k].flows for k in old)
+    assert all(k not in f.flows for f in slam.frames.values() for k in old)
