@@ -33,5 +33,8 @@ def _faults(mode: str) -> int:
 def test_freed_8mb_temporaries_are_reused_without_page_faults():
     pages = (8 << 20) // resource.getpagesize()
     default, retained = _faults("default"), _faults("retain")
-    assert default > 3 * pages  # glibc gives freed memory back: the cycles fault it in again
     assert retained <= pages + 64  # at most one late growth of the heap
+    # glibc's defaults give freed memory back and the cycles fault it in again: how often depends
+    # on its adaptive mmap threshold (16,196 faults here, 6,088 on the CI machine), so only
+    # require that retaining saves more than one 8 MB tensor's worth of faults.
+    assert default > retained + pages
