@@ -24,7 +24,7 @@ MESH_RESOLUTION = 64
 def coarse_mesh(slam: SlamSystem, poses: np.ndarray, intr: Intrinsics):
     """`scene_mesh` at MESH_RESOLUTION: a second or two."""
     coarse = dataclasses.replace(slam.cfg, mesh=dataclasses.replace(slam.cfg.mesh, resolution=MESH_RESOLUTION))
-    return scene_mesh(slam.model, slam.beta, poses, intr, coarse)
+    return scene_mesh(*slam.map_view(), poses, intr, coarse)
 
 
 class LiveMapOutputs:
@@ -41,16 +41,17 @@ class LiveMapOutputs:
         self.updates += 1
         small = intr.scaled(RENDER_SCALE)
         T = slam.poses[event.index]
-        view = render_image(slam.model, slam.beta, T, small, slam.cfg.render)
+        model, beta = slam.map_view()  # the published map: mapping may be changing the live one
+        view = render_image(model, beta, T, small, slam.cfg.render)
         self.sink.log_map_render(event.index, view.rgb, view.depth, view.normal, small, T.double().cpu().numpy())
         kf = [k for k in slam.keyframes if k in slam.poses]
         if kf:
             self.sink.log_keyframes(np.stack([slam.poses[k].double().cpu().numpy() for k in kf]))
-        centres, betas = slam.beta.voxel_betas()
+        centres, betas = beta.voxel_betas()
         if len(centres):
-            world = slam.model.bound.denormalise(centres.to(torch.float32)).cpu().numpy()
+            world = model.bound.denormalise(centres.to(torch.float32)).cpu().numpy()
             self.sink.log_beta_voxels(world, betas.cpu().numpy(),
-                                      2 * slam.model.bound.half_extent / slam.cfg.render.beta_voxels)
+                                      2 * model.bound.half_extent / slam.cfg.render.beta_voxels)
         self.sink.log_scalars(event.index, {"mapping_loss": event.loss,
                                             **{f"mapping_{k}": v for k, v in event.terms.items()}})
         if self.mesh_every and self.updates % self.mesh_every == 0:

@@ -16,6 +16,7 @@ from nicer_stream.runtime.allocator import retain_freed_memory
 from nicer_stream.runtime.checkpoint import save_scene
 from nicer_stream.runtime.frame_priors import make_engine, provider_names
 from nicer_stream.runtime.live_outputs import MESH_RESOLUTION, LiveMapOutputs, coarse_mesh
+from nicer_stream.runtime.mapping_thread import MappingThread, split_threads
 from nicer_stream.runtime.pacer import Pacer
 from nicer_stream.runtime.prior_stage import PriorStage
 from nicer_stream.runtime.progress import Progress
@@ -53,6 +54,9 @@ class RunRequest:
     """No per-frame lines and no mapping progress: errors and the final summary only."""
     live_mesh_every: int = 5
     """With a sink: a coarse mesh every this many map updates (0: only the final mesh)."""
+    sync: bool = False
+    """Tracking and mapping in one thread, in order (deterministic under a seed); default: mapping
+    on its own worker thread, tracking against the last published map."""
     source_opts: SourceOptions = field(default_factory=SourceOptions)
 
 
@@ -68,6 +72,13 @@ class RunOutcome:
 
 
 
+def _one_line(e: Exception) -> str:
+    error = f"{type(e).__name__}: {e}".splitlines()[0]
+    log.debug("the run stopped on an error", exc_info=True)
+    print(f"error: {error}; writing what was computed so far", flush=True)
+    return error
+
+
 def run_slam(req: RunRequest) -> RunOutcome:
     """Run SLAM over the source and write the output directory. A stop (Ctrl-C, SIGTERM) or an
     error inside a stage ends the loop early; every output computed so far is still written."""
@@ -80,8 +91,12 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     torch.manual_seed(cfg.seed)
     retain_freed_memory()
     timer = StageTimer()
+    all_threads = torch.get_num_threads()
+    track_threads, map_threads = split_threads()
+    runtime = ("sync (one thread)" if req.sync else
+               f"async (tracking {track_threads} + mapping {map_threads} intra-op threads)")
     print(f"opening {req.source} (preset {cfg.preset}, priors {req.priors}, device {req.device}); "
-          f"mapping progress on stderr", flush=True)
+          f"{runtime}; mapping progress on stderr", flush=True)
     source, _ = open_configured(req.source, req.source_opts, cfg)
     out = Path(req.out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -89,9 +104,11 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     if engine.depth_normal.auto_reason:
         print(engine.depth_normal.auto_reason, flush=True)
     stage = PriorStage(engine)
+    worker = None if req.sync else MappingThread(map_threads, threads_alone=all_threads)
     slam = SlamSystem(cfg, req.device,
                       progress=None if req.quiet else lambda label: Progress(label, MAPPING_PROGRESS_EVERY_S),
-                      stereo=engine.depth_normal.name == "stereo", should_stop=lambda: stop.requested)
+                      stereo=engine.depth_normal.name == "stereo", should_stop=lambda: stop.requested or failed,
+                      mapping=worker)
     from sinks import make_sink
 
     sink = make_sink(list(req.sinks)) if req.sinks else None
@@ -103,6 +120,9 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     except TypeError:
         total = None
     done, t_start = 0, time.perf_counter()
+    failed = False  # an error ended the loop: the mapping call in hand stops too
+    read_at: dict[int, float] = {}  # frame index -> when the source gave it
+    latency: list[float] = []  # seconds from frame read to its pose event
 
     def say(text: str) -> None:
         if not req.quiet:
@@ -120,12 +140,15 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     def timed(call):
         """Run one SLAM call -> (events, seconds); its mapping calls' seconds are booked as
         mapping, the rest (tracking, flow start, the two-view start's set-up) as tracking."""
-        t0 = time.perf_counter()
+        t0, waited = time.perf_counter(), slam.mapping_wait_s
         events = call()
         elapsed = time.perf_counter() - t0
-        mapped = sum(e.seconds for e in events if isinstance(e, MapUpdated))
-        timer.seconds.mapping += mapped
-        timer.seconds.tracking += elapsed - mapped
+        # Mapping: the seconds of the calls that finished (on the worker they overlap tracking);
+        # tracking: this call's seconds except those spent in or waiting for mapping.
+        timer.seconds.mapping += sum(e.seconds for e in events if isinstance(e, MapUpdated))
+        timer.seconds.tracking += max(elapsed - (slam.mapping_wait_s - waited), 0.0)
+        if worker is not None and slam.map_version >= 1 and torch.get_num_threads() != track_threads:
+            torch.set_num_threads(track_threads)  # the start-up is over: the worker has the rest
         return events, elapsed
 
     def handle(events, step_s: float, frame) -> None:
@@ -142,6 +165,8 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                     live(e, intr)
             if isinstance(e, FrameTracked):
                 f = waiting.pop(e.index, frame)
+                if e.index in read_at:
+                    latency.append(time.perf_counter() - read_at.pop(e.index))
                 kept[e.index] = f.rgb if e.index % max(1, req.render_every) == 0 else None
                 last = (e.index, f.rgb)
                 lost = f" LOST ({e.lost})" if e.lost else ""
@@ -162,6 +187,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                     break
                 if pacer.drop(frame.timestamp):
                     continue
+                read_at[frame.index] = time.perf_counter()
                 intr = frame.intrinsics
                 with timer.stage("priors"):
                     pri = stage(frame)
@@ -176,9 +202,13 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
         except KeyboardInterrupt:  # where the handlers could not be installed (not the main thread)
             stop.request()
         except Exception as e:  # a stage failed: keep what was computed, report it in one line
-            error = f"{type(e).__name__}: {e}".splitlines()[0]
-            log.debug("the run stopped on an error", exc_info=True)
-            print(f"error: {error}; writing what was computed so far", flush=True)
+            error, failed = _one_line(e), True
+        if slam.model is not None:  # stopped early: the mapping call in hand ends and is applied
+            try:
+                slam.wait_for_mapping()
+            except Exception as e:
+                error = error or _one_line(e)
+        torch.set_num_threads(all_threads)
         if slam.model is None and error is None and not stop.requested:
             raise UserError(f"source {req.source} gave no usable frames")
         if stop.requested:
@@ -206,6 +236,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
             if stop.requested:
                 notes.append(f"stopped by {stop.reason} after {n} frames")
             track_pf, map_pf = timer.seconds.tracking / max(n, 1), timer.seconds.mapping / max(n, 1)
+            lat = np.percentile(latency, [50, 95]) if latency else [float("nan")] * 2
             return write_summary(
                 out, frames=n, preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
                 interrupted=early, error=error, bound=slam.bound, source=req.source, notes=notes,
@@ -213,7 +244,9 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                 config=config_mod.to_dict(cfg),
                 stats={"keyframes": len(slam.keyframes), "lost_frames": slam.lost_frames, "dropped_frames": pacer.dropped,
                        "tracking_s_per_frame": track_pf, "mapping_s_per_frame": map_pf,
-                       "mapping_iterations": slam.mapped_iters,
+                       "mapping_iterations": slam.mapped_iters, "runtime": runtime,
+                       "map_versions": slam.map_version, "mapping_wait_s": slam.mapping_wait_s,
+                       "pose_latency_median_s": float(lat[0]), "pose_latency_p95_s": float(lat[1]),
                        "skipped_corrupt_source_frames": getattr(source, "skipped_frames", 0)},
             )
 
@@ -250,12 +283,15 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                     world = slam.model.bound.denormalise(centres.to(torch.float32)).cpu().numpy()
                     sink.log_beta_voxels(world, betas.cpu().numpy(), 2 * slam.model.bound.half_extent / slam.cfg.render.beta_voxels)
     finally:
+        if worker is not None:
+            worker.close()
         if sink is not None:
             sink.close()
     early = early or stop.requested  # a stop during the renders or the mesh
     s = summary()
     print(f"{n} frames in {s.wall_s:.0f} s ({s.seconds_per_frame:.1f} s/frame: tracking "
-          f"{s.stats['tracking_s_per_frame']:.1f}, mapping {s.stats['mapping_s_per_frame']:.1f}); "
+          f"{s.stats['tracking_s_per_frame']:.1f}, mapping {s.stats['mapping_s_per_frame']:.1f}; "
+          f"pose latency median {s.stats['pose_latency_median_s']:.1f} s, p95 {s.stats['pose_latency_p95_s']:.1f} s; {runtime}); "
           f"{len(slam.lost_frames)} lost; outputs in {out}", flush=True)
     code = stop.exit_code if stop.requested else (1 if error is not None else 0)
     return RunOutcome(out, code, error)

@@ -35,6 +35,10 @@ class MapUpdated:
     seconds: float
     terms: dict[str, float] = field(default_factory=dict)
     """The last iteration's loss terms (unweighted), by name."""
+    background: bool = False
+    """Ran on the mapping worker while tracking went on (its seconds overlap the frames')."""
+    version: int = 0
+    """The map version it produced (mapping calls applied so far)."""
 
 
 Event = FrameTracked | KeyframeAdded | MapUpdated

@@ -1,8 +1,10 @@
 """The streaming SLAM system: `step(frame)` per frame, `finish()` at the end.
 
-Synchronous: tracking and mapping run in the caller's thread, in order. The tracker
-only reads the scene model. No ground truth enters: `step` refuses frames that
-carry any (priors are computed beforehand by runtime.prior_stage).
+Tracking runs in the caller's thread; mapping calls are jobs (slam/map_jobs.py) run by an
+injected executor: inline by default (tracking and mapping in order, deterministic), or on
+the runtime's worker, tracking then reads the last published map snapshot and never waits
+for a mapping call except at start-up and at the end. No ground truth enters: `step` refuses
+frames that carry any (priors are computed beforehand by runtime.prior_stage).
 """
 from __future__ import annotations
 
@@ -26,6 +28,7 @@ from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.model.bound_estimate import bound_from_config, bound_from_depth
 from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpdated
+from nicer_stream.slam.map_jobs import InlineMapping, MapJob, MappingExecutor, MapResult, job_frames, take_snapshot
 from nicer_stream.slam.motion import frontend_disagreement, predict_pose, tracking_failure
 from nicer_stream.slam.stereo_priors import StereoPriors
 from nicer_stream.slam.two_view import TwoView, two_view_init
@@ -60,7 +63,8 @@ class SlamSystem:
 
     def __init__(self, cfg: SlamConfig, device: str = "cpu",
                  progress: Callable[[str], MappingProgress | None] | None = None,
-                 stereo: bool = False, should_stop: Callable[[], bool] | None = None) -> None:
+                 stereo: bool = False, should_stop: Callable[[], bool] | None = None,
+                 mapping: MappingExecutor | None = None) -> None:
         if cfg.loss.slam_prior_alignment not in ("lstsq", "map", "flow"):
             raise UserError(f"loss.slam_prior_alignment must be lstsq, map or flow, got {cfg.loss.slam_prior_alignment!r}")
         if cfg.tracking.init not in ("previous", "constant_velocity", "flow"):
@@ -81,6 +85,10 @@ class SlamSystem:
         # a stop request ends them early (the caller then writes what exists).
         self.should_stop = should_stop or (lambda: False)
         self.mapped_iters = 0  # mapping iterations done (0: the scene is still the initial sphere)
+        self.mapping = mapping or InlineMapping()
+        self.map_version = 0  # mapping calls applied; tracking reads this version of the map
+        self._map_due = False  # a call the schedule asked for while the worker was busy
+        self.mapping_wait_s = 0.0  # the caller's seconds in mapping: inline calls and waits for the worker
         self.rng = random.Random(cfg.seed)
         self.model: SceneModel | None = None
         self.beta: BetaField | None = None
@@ -113,6 +121,10 @@ class SlamSystem:
         arrives; their events come then."""
         if frame.gt_pose is not None or frame.gt_depth is not None:
             raise UserError("SlamSystem.step got a frame with ground truth: pass frame.without_ground_truth()")
+        done = self._collect()  # mapping calls that finished on the worker since the last frame
+        return done + self._step(frame, priors)
+
+    def _step(self, frame: Frame, priors: Priors | None) -> list[Event]:
         mf = MapFrame.from_frame(frame, priors, self.device) if np.isfinite(frame.rgb).all() else None
         if self.frontend is not None and mf is not None:
             with self._frontend_timer():
@@ -182,8 +194,14 @@ class SlamSystem:
             self.keyframes.append(i)
             events.append(KeyframeAdded(i))
             self._cap_keyframes()
-        if trusted and len(self.order) > 1 and (len(self.order) - 1) % self.cfg.mapping.every == 0:
-            events.append(self._map(i, self.cfg.mapping.iters))
+        due = len(self.order) > 1 and (len(self.order) - 1) % self.cfg.mapping.every == 0
+        if trusted and (due or self._map_due):
+            events += self._collect()  # a call that has just finished frees the worker
+            if self.mapping.busy():  # the worker is still on the last call: map at the next frame
+                self._map_due = True
+            else:
+                self._map_due = False
+                events += self._map(i, self.cfg.mapping.iters)
         return events
 
     def finish(self) -> list[Event]:
@@ -195,11 +213,16 @@ class SlamSystem:
             return events + self.finish()
         if self.model is None:
             return []
+        events = self.wait_for_mapping()
         if self.cfg.mapping.final_iters is not None:
-            return [self._map(self.order[-1], self.cfg.mapping.final_iters, bundle_adjust=False, closing=True)]
-        if (len(self.order) - 1) % self.cfg.mapping.every == 0:
-            return []
-        return [self._map(self.order[-1], self.cfg.mapping.iters, closing=True)]
+            events += self._map(self.order[-1], self.cfg.mapping.final_iters, bundle_adjust=False, closing=True)
+        elif (len(self.order) - 1) % self.cfg.mapping.every != 0 or self._map_due:
+            events += self._map(self.order[-1], self.cfg.mapping.iters, closing=True)
+        return events + self.wait_for_mapping()
+
+    def wait_for_mapping(self) -> list[MapUpdated]:
+        """Wait for the mapping call in hand (if any) and apply it: the live map is then final."""
+        return self._collect(wait=True)
 
     # -- stages ----------------------------------------------------------------------
     def _initialise(self, mf: MapFrame, second: MapFrame | None = None, view: TwoView | None = None,
@@ -244,11 +267,16 @@ class SlamSystem:
                                      progress=self._progress(label), color_start=cfg.mapping.batch_color_start,
                                      stop=self.should_stop)
         self.mapped_iters += stats.iters
+        self.mapping_wait_s += stats.seconds
+        self.map_version += 1
+        if self.mapping.background:  # the worker will change the live map: tracking reads a copy
+            self._read_map(take_snapshot(self.model, self.beta, self.map_version))
         if cfg.loss.slam_prior_alignment == "map" and view is None:
             mf.depth_scale_shift = self.scale_rule
         return [
             FrameTracked(mf.index, mf.timestamp, T0.double().cpu().numpy(), 0.0, 0.0),
-            MapUpdated(mf.index, tuple(f.index for f in window), stats.loss, stats.iters, stats.seconds, stats.terms),
+            MapUpdated(mf.index, tuple(f.index for f in window), stats.loss, stats.iters, stats.seconds, stats.terms,
+                       version=self.map_version),
         ]
 
     def _start_two_view(self, mf: MapFrame | None, frame: Frame | None) -> list[Event]:
@@ -335,7 +363,7 @@ class SlamSystem:
     def _flow_init(self, mf: MapFrame, T_prev: torch.Tensor) -> torch.Tensor:
         """PnP pose from the stored frames' flows to `mf` (else `T_prev`)."""
         sources = [(f, self.poses[k]) for k, f in self.frames.items() if mf.index in f.flows]
-        T = pose_from_flows(sources, mf, T_prev, self.model, self.beta, self.tracker.render,
+        T = pose_from_flows(sources, mf, T_prev, self.tracker.model, self.tracker.beta, self.tracker.render,
                             self.cfg.tracking.flow_points, self.tracker.gen)
         if T is None:
             log.info("frame %d: no flow PnP solution: tracking from the previous pose", mf.index)
@@ -359,7 +387,9 @@ class SlamSystem:
     def _progress(self, label: str) -> MappingProgress | None:
         return self.progress(label) if self.progress is not None else None
 
-    def _map(self, current: int, iters: int, bundle_adjust: bool = True, closing: bool = False) -> MapUpdated:
+    def _map(self, current: int, iters: int, bundle_adjust: bool = True, closing: bool = False) -> list[MapUpdated]:
+        """Plan a mapping call and submit it; the calls that have finished come back as events
+        (this one at once with the inline executor)."""
         window = select_window(self.keyframes, current, self.cfg.mapping, self.rng)
         anchor = self.order[0]
         ba = ba_frames(window, current, anchor) if bundle_adjust and self.cfg.mapping.ba_start < 1.0 else set()
@@ -370,14 +400,53 @@ class SlamSystem:
             for k in window:
                 f = self.frames[k]
                 if f.depth_scale_shift is None:
-                    f.depth_scale_shift = align_prior_to_map(f, self.poses[k], self.model, self.beta, self.cfg.render)
+                    f.depth_scale_shift = align_prior_to_map(f, self.poses[k], *self.map_view(), self.cfg.render)
         elif mode == "flow":
             self._align_by_flow(window)
         label = f"{'closing mapping' if closing else 'mapping'} @ frame {current}"
-        stats = self.mapper.optimise([self.frames[k] for k in window], self.poses, iters, ba_indices=ba,
-                                     progress=self._progress(label), stop=self.should_stop)
-        self.mapped_iters += stats.iters
-        return MapUpdated(current, tuple(window), stats.loss, stats.iters, stats.seconds, stats.terms)
+        job = MapJob(current, tuple(window), job_frames([self.frames[k] for k in window]),
+                     {k: self.poses[k].clone() for k in window}, iters, frozenset(ba), label, closing)
+        t0 = time.perf_counter()
+        self.mapping.submit(job, self._run_job)
+        self.mapping_wait_s += time.perf_counter() - t0
+        return self._collect()
+
+    def _run_job(self, job: MapJob) -> MapResult:
+        """The executor's side (a worker thread in the background): touches only the mapper,
+        the live map and the job."""
+        stats = self.mapper.optimise(job.frames, job.poses, job.iters, ba_indices=set(job.ba),
+                                     progress=self._progress(job.label), stop=self.should_stop)
+        snap = take_snapshot(self.model, self.beta, self.map_version + 1) if self.mapping.background else None
+        return MapResult(job, stats, snap)
+
+    def _collect(self, wait: bool = False) -> list[MapUpdated]:
+        """Apply the finished mapping calls: bundle-adjusted poses, iteration count, the map
+        tracking reads."""
+        events = []
+        t0 = time.perf_counter()
+        results = self.mapping.drain() if wait else self.mapping.poll()
+        self.mapping_wait_s += time.perf_counter() - t0
+        for r in results:
+            for k in r.job.ba:
+                self.poses[k] = r.job.poses[k]
+            self.mapped_iters += r.stats.iters
+            self.map_version += 1
+            if r.snapshot is not None:
+                self._read_map(r.snapshot)
+            s = r.stats
+            events.append(MapUpdated(r.job.current, r.job.window, s.loss, s.iters, s.seconds, s.terms,
+                                     background=self.mapping.background and not r.job.closing,
+                                     version=self.map_version))
+        return events
+
+    def _read_map(self, snap) -> None:
+        """Tracking (and `map_view`) read `snap` from now on."""
+        self.tracker.model, self.tracker.beta = snap.model, snap.beta
+
+    def map_view(self) -> tuple[SceneModel, BetaField]:
+        """The map as tracking reads it: the live one inline, else the last published snapshot
+        (safe to render from the caller's thread while mapping runs)."""
+        return self.tracker.model, self.tracker.beta
 
     def _align_by_flow(self, window: list[int]) -> None:
         """(w, q) of each window frame by flow triangulation with the current pose estimates
