@@ -1,9 +1,13 @@
 """What a sink receives at each map update, while the run goes on: the map's render of the
 frame just mapped, every keyframe's pose, the adaptive-beta voxels, the mapping loss terms,
-and every `mesh_every` updates a coarse mesh (the full one comes at the end)."""
+and every `mesh_every` updates a coarse mesh (the full one comes at the end).
+
+The state is taken in the SLAM thread (poses, the published map) and the renders are made
+where `submit` runs them: on the sink worker in the asynchronous runtime."""
 from __future__ import annotations
 
 import dataclasses
+from typing import Callable
 
 import numpy as np
 import torch
@@ -21,42 +25,61 @@ RENDER_SCALE = 0.5
 MESH_RESOLUTION = 64
 
 
-def coarse_mesh(slam: SlamSystem, poses: np.ndarray, intr: Intrinsics):
-    """`scene_mesh` at MESH_RESOLUTION: a second or two."""
+def coarse_mesh(slam: SlamSystem, poses: np.ndarray, intr: Intrinsics, model=None, beta=None):
+    """`scene_mesh` at MESH_RESOLUTION: a second or two (of `model`, default the published map)."""
     coarse = dataclasses.replace(slam.cfg, mesh=dataclasses.replace(slam.cfg.mesh, resolution=MESH_RESOLUTION))
-    return scene_mesh(*slam.map_view(), poses, intr, coarse)
+    if model is None:
+        model, beta = slam.map_view()
+    return scene_mesh(model, beta, poses, intr, coarse)
 
 
 class LiveMapOutputs:
-    """Logs a map update's state to `sink`; `mesh_every` 0 leaves meshes to the end of the run."""
+    """Logs a map update's state to `sink`; `mesh_every` 0 leaves meshes to the end of the run.
+    `submit(fn)` runs the rendering and logging (default: at once); an update still queued when
+    a newer one arrives is skipped there, so a slow sink skips map updates, never the SLAM."""
 
-    def __init__(self, sink: Sink, slam: SlamSystem, mesh_every: int = 5) -> None:
+    def __init__(self, sink: Sink, slam: SlamSystem, mesh_every: int = 5,
+                 submit: Callable[[Callable[[], None]], None] | None = None) -> None:
         self.sink, self.slam, self.mesh_every = sink, slam, mesh_every
+        self.submit = submit or (lambda fn: fn())
         self.updates = 0
+        self.skipped = 0  # updates a newer one overtook before the sink worker got to them
 
     def __call__(self, event: MapUpdated, intr: Intrinsics) -> None:
         slam = self.slam
         if event.iters == 0 or slam.model is None:
             return  # nothing changed (a stop before the first iteration)
         self.updates += 1
-        small = intr.scaled(RENDER_SCALE)
-        T = slam.poses[event.index]
         model, beta = slam.map_view()  # the published map: mapping may be changing the live one
-        view = render_image(model, beta, T, small, slam.cfg.render)
+        T = slam.poses[event.index].clone()
+        kf = [slam.poses[k].double().cpu().numpy() for k in slam.keyframes if k in slam.poses]
+        poses = np.stack(slam.trajectory()[1]) if self.mesh_every and self.updates % self.mesh_every == 0 else None
+
+        seq = self.updates
+
+        def emit() -> None:
+            if seq < self.updates:  # a newer update is queued behind this one: it shows the newer map
+                self.skipped += 1
+                return
+            self._emit(event, intr, model, beta, T, kf, poses)
+
+        self.submit(emit)
+
+    def _emit(self, event, intr, model, beta, T, kf, poses) -> None:
+        small = intr.scaled(RENDER_SCALE)
+        view = render_image(model, beta, T, small, self.slam.cfg.render)
         self.sink.log_map_render(event.index, view.rgb, view.depth, view.normal, small, T.double().cpu().numpy())
-        kf = [k for k in slam.keyframes if k in slam.poses]
         if kf:
-            self.sink.log_keyframes(np.stack([slam.poses[k].double().cpu().numpy() for k in kf]))
+            self.sink.log_keyframes(np.stack(kf))
         centres, betas = beta.voxel_betas()
         if len(centres):
             world = model.bound.denormalise(centres.to(torch.float32)).cpu().numpy()
             self.sink.log_beta_voxels(world, betas.cpu().numpy(),
-                                      2 * model.bound.half_extent / slam.cfg.render.beta_voxels)
+                                      2 * model.bound.half_extent / self.slam.cfg.render.beta_voxels)
         self.sink.log_scalars(event.index, {"mapping_loss": event.loss,
                                             **{f"mapping_{k}": v for k, v in event.terms.items()}})
-        if self.mesh_every and self.updates % self.mesh_every == 0:
-            _, poses = slam.trajectory()
-            mesh = coarse_mesh(slam, np.stack(poses), intr)
+        if poses is not None:
+            mesh = coarse_mesh(self.slam, poses, intr, model, beta)
             if len(mesh.faces):
                 self.sink.log_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces),
                                    np.asarray(mesh.visual.vertex_colors)[:, :3])

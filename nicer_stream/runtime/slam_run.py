@@ -16,7 +16,9 @@ from nicer_stream.runtime.allocator import retain_freed_memory
 from nicer_stream.runtime.checkpoint import save_scene
 from nicer_stream.runtime.frame_priors import make_engine, provider_names
 from nicer_stream.runtime.live_outputs import MESH_RESOLUTION, LiveMapOutputs, coarse_mesh
+from nicer_stream.runtime.frame_reader import ReadAhead
 from nicer_stream.runtime.mapping_thread import MappingThread, split_threads
+from nicer_stream.runtime.sink_worker import SinkWorker
 from nicer_stream.runtime.pacer import Pacer
 from nicer_stream.runtime.prior_stage import PriorStage
 from nicer_stream.runtime.progress import Progress
@@ -112,7 +114,12 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     from sinks import make_sink
 
     sink = make_sink(list(req.sinks)) if req.sinks else None
-    live = LiveMapOutputs(sink, slam, req.live_mesh_every) if sink is not None else None
+    live = None
+    if sink is not None and not req.sync:  # sink calls and live renders on the sink worker
+        sink = SinkWorker(sink)
+        live = LiveMapOutputs(sink.sink, slam, req.live_mesh_every, submit=sink.submit)
+    elif sink is not None:
+        live = LiveMapOutputs(sink, slam, req.live_mesh_every)
     pacer = Pacer(req.realtime)
     n, intr, kept, last, waiting, error = 0, None, {}, None, {}, None
     try:
@@ -120,6 +127,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     except TypeError:
         total = None
     done, t_start = 0, time.perf_counter()
+    reader = source if req.sync else ReadAhead(source)  # read and decoded on its own thread
     failed = False  # an error ended the loop: the mapping call in hand stops too
     read_at: dict[int, float] = {}  # frame index -> when the source gave it
     latency: list[float] = []  # seconds from frame read to its pose event
@@ -129,13 +137,17 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
             print(text, flush=True)
 
     def status() -> str:
-        """[done/total, frames per second, ETA] for the per-frame line."""
+        """[done/total, frames per second, ETA, map version, queue depths] for the per-frame line."""
         rate = done / max(time.perf_counter() - t_start, 1e-9)
+        queues = ""
+        if not req.sync:  # frames read ahead, sink calls waiting, whether mapping is running
+            queues = (f", map v{slam.map_version}{'+' if slam.mapping.busy() else ''}, "
+                      f"queued {reader.depth} frames / {sink.pending if isinstance(sink, SinkWorker) else 0} sink calls")
         if total is None:
-            return f"[{done} done, {rate:.2f} fps]"
+            return f"[{done} done, {rate:.2f} fps{queues}]"
         left = max(total - done, 0)
         eta = f"{left / rate:.0f} s" if done else "?"  # no pose yet (the two-view start holds frames)
-        return f"[{done}/{total}, {rate:.2f} fps, eta {eta}]"
+        return f"[{done}/{total}, {rate:.2f} fps, eta {eta}{queues}]"
 
     def timed(call):
         """Run one SLAM call -> (events, seconds); its mapping calls' seconds are booked as
@@ -182,7 +194,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
 
     try:
         try:
-            for frame in source:
+            for frame in reader:
                 if stop.requested:
                     break
                 if pacer.drop(frame.timestamp):
@@ -209,6 +221,8 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
             except Exception as e:
                 error = error or _one_line(e)
         torch.set_num_threads(all_threads)
+        if isinstance(reader, ReadAhead):
+            reader.close()  # a stop or an error left frames unread
         if slam.model is None and error is None and not stop.requested:
             raise UserError(f"source {req.source} gave no usable frames")
         if stop.requested:
@@ -246,6 +260,8 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                        "tracking_s_per_frame": track_pf, "mapping_s_per_frame": map_pf,
                        "mapping_iterations": slam.mapped_iters, "runtime": runtime,
                        "map_versions": slam.map_version, "mapping_wait_s": slam.mapping_wait_s,
+                       "sink_worker_s": sink.seconds if isinstance(sink, SinkWorker) else None,
+                       "live_updates_skipped": live.skipped if live is not None else 0,
                        "pose_latency_median_s": float(lat[0]), "pose_latency_p95_s": float(lat[1]),
                        "skipped_corrupt_source_frames": getattr(source, "skipped_frames", 0)},
             )
@@ -283,10 +299,15 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                     world = slam.model.bound.denormalise(centres.to(torch.float32)).cpu().numpy()
                     sink.log_beta_voxels(world, betas.cpu().numpy(), 2 * slam.model.bound.half_extent / slam.cfg.render.beta_voxels)
     finally:
+        if isinstance(reader, ReadAhead):
+            reader.close()
         if worker is not None:
             worker.close()
         if sink is not None:
-            sink.close()
+            try:
+                sink.close()
+            except Exception as e:  # a sink failed (already logged): the files are written
+                error = error or _one_line(e)
     early = early or stop.requested  # a stop during the renders or the mesh
     s = summary()
     print(f"{n} frames in {s.wall_s:.0f} s ({s.seconds_per_frame:.1f} s/frame: tracking "

@@ -21,7 +21,8 @@ FRAMES = 14
 def test_live_outputs_reach_both_sinks_while_the_run_goes_on(tmp_path, tiny_config):
     rrd, mcap = tmp_path / "rec.rrd", tmp_path / "rec.mcap"
     res = run_slam(RunRequest(source=f"synthetic:room?frames={FRAMES}", out_dir=tmp_path / "out", priors="oracle:clean",
-                              config_file=str(tiny_config), sinks=(f"rerun:{rrd}", f"mcap:{mcap}"), live_mesh_every=1))
+                              config_file=str(tiny_config), sinks=(f"rerun:{rrd}", f"mcap:{mcap}"), live_mesh_every=1,
+                              sync=True))  # every map update logged (the sink worker may skip some)
     assert res.exit_code == 0
     t, poses = read_tum(res.out_dir / od.TRAJECTORY_FILE)
     cols = read_rrd_columns(rrd)

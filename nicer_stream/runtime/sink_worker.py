@@ -1,0 +1,97 @@
+"""Sinks on a thread of their own: SLAM queues each call and goes on; the worker makes them in
+order. Slow logging (Rerun encoding, MCAP compression, live map renders) then never stalls
+tracking; the queue is bounded, so a sink that cannot keep up slows the run instead of growing
+memory without limit.
+"""
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from typing import Callable, Mapping
+
+import numpy as np
+import torch
+
+from sinks.base import Sink
+
+log = logging.getLogger(__name__)
+
+_STOP = object()
+
+
+class SinkWorker(Sink):
+    """A `Sink` that forwards every call to `sink` on a worker thread (arrays passed in must not
+    be modified afterwards: every caller here passes fresh ones). `submit(fn)` queues other work
+    that ends in sink calls (live map renders). A failing call is logged once and the sink is
+    not called again; `close()` drains the queue, closes `sink` and re-raises that error."""
+
+    def __init__(self, sink: Sink, maxsize: int = 256, threads: int = 1) -> None:
+        self.sink, self.threads = sink, threads
+        self.seconds = 0.0  # the worker's time in sink calls
+        self.error: Exception | None = None
+        self._queue: queue.Queue = queue.Queue(maxsize)
+        self._closed = False
+        self._thread = threading.Thread(target=self._loop, name="sinks", daemon=True)
+        self._thread.start()
+
+    @property
+    def pending(self) -> int:
+        """Calls queued and not made yet."""
+        return self._queue.qsize()
+
+    def submit(self, fn: Callable[[], None]) -> None:
+        if not self._closed:
+            self._queue.put(fn)
+
+    def _loop(self) -> None:
+        torch.set_num_threads(self.threads)
+        while (fn := self._queue.get()) is not _STOP:
+            if self.error is not None:
+                continue  # drain: the sink failed
+            t0 = time.perf_counter()
+            try:
+                fn()
+            except Exception as e:  # reported at close(); the run goes on without this sink
+                self.error = e
+                log.warning("sink call failed, no further sink output: %s: %s", type(e).__name__, e)
+            self.seconds += time.perf_counter() - t0
+
+    def _call(self, name: str, *args, **kwargs) -> None:
+        method = getattr(self.sink, name)
+        self.submit(lambda: method(*args, **kwargs))
+
+    def log_pose(self, *args, **kwargs) -> None:
+        self._call("log_pose", *args, **kwargs)
+
+    def log_frame(self, *args, **kwargs) -> None:
+        self._call("log_frame", *args, **kwargs)
+
+    def log_trajectory(self, *args, **kwargs) -> None:
+        self._call("log_trajectory", *args, **kwargs)
+
+    def log_mesh(self, *args, **kwargs) -> None:
+        self._call("log_mesh", *args, **kwargs)
+
+    def log_beta_voxels(self, *args, **kwargs) -> None:
+        self._call("log_beta_voxels", *args, **kwargs)
+
+    def log_map_render(self, *args, **kwargs) -> None:
+        self._call("log_map_render", *args, **kwargs)
+
+    def log_keyframes(self, poses: np.ndarray) -> None:
+        self._call("log_keyframes", poses)
+
+    def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
+        self._call("log_scalars", index, dict(values))
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self._queue.put(_STOP)
+            self._thread.join()
+        self.sink.close()
+        if self.error is not None:
+            err, self.error = self.error, None
+            raise err
