@@ -43,6 +43,10 @@ def format_table(rep: od.EvalReport) -> str:
     v = rep.evaluated_views
     size = f" at {v.width}x{v.height}" if v.width else ""
     rows.append(("evaluated views", f"{len(v.frame_indices)}{size}"))
+    h = rep.heldout
+    rows += [("held-out PSNR", _fmt(h.psnr_db, "dB")), ("held-out SSIM", _fmt(h.ssim, "")),
+             ("held-out depth L1", _fmt(h.depth_l1_m, "m")), ("held-out LPIPS", _fmt(h.lpips, "") if h.lpips is not None else "- (no weights)"),
+             ("held-out views", f"{len(h.frame_indices)} (frames never mapped)")]
     rows.append(("priors", ", ".join(rep.priors) or "-"))
     w = max(len(r[0]) for r in rows)
     return "\n".join(f"{name:<{w}}  {val}" for name, val in rows)

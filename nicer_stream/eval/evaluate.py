@@ -18,9 +18,12 @@ import trimesh
 
 from nicer_stream.errors import UserError
 from nicer_stream.eval import image, mesh as mesh_m, reference, registration, trajectory
+from nicer_stream.eval.heldout import HeldOutPicker, evaluate_heldout
+from nicer_stream.types import Intrinsics
 from nicer_stream.io import output_dir as od
 from nicer_stream.io.trajectory import read_tum
 from nicer_stream.types import Frame
+from nicer_stream.io.scene_file import SCENE_FILE
 from sources.base import FrameSource, SourceOptions, resize_frame
 
 CULL_MAX_SIDE = 320  # GT depth kept for occlusion culling is downsampled to this (memory)
@@ -134,15 +137,22 @@ def evaluate_output_dir(
     voxel: float = reference.DEFAULT_VOXEL_M,
     threshold: float = mesh_m.COMPLETION_THRESHOLD_M,
     seed: int = 0,
+    heldout_views: int = 8,
 ) -> od.EvalReport:
-    """Compare OUT's trajectory, renders and mesh with the GT of `source` (iterated once)."""
+    """Compare OUT's trajectory, renders and mesh with the GT of `source` (iterated once), and
+    up to `heldout_views` frames the map never saw rendered from scene.pt (eval/heldout.py)."""
     out = Path(out_dir)
     if not out.is_dir():
         raise UserError(f"output directory {out} not found: give the OUTDIR of a 'nicer-stream run' or 'map'")
     rep = od.EvalReport()
-    if (out / od.SUMMARY_FILE).is_file():
-        rep.priors = list(od.read_summary(out).priors)
+    summary = od.read_summary(out) if (out / od.SUMMARY_FILE).is_file() else None
+    if summary is not None:
+        rep.priors = list(summary.priors)
     traj = _read_trajectory(out)
+    picker = None
+    if (traj is not None and heldout_views > 0 and summary is not None and summary.intrinsics
+            and "mapped_frames" in summary.stats and (out / SCENE_FILE).is_file()):
+        picker = HeldOutPicker(traj[0], traj[1], set(summary.stats["mapped_frames"]), heldout_views)
     renders = _render_paths(out)
     est_mesh = _load_mesh(out / od.MESH_FILE) if traj is not None else None
     gt_mesh_fn = getattr(source, "gt_mesh", None)
@@ -153,6 +163,8 @@ def evaluate_output_dir(
     for frame in source:
         stamps.append(frame.timestamp)
         poses.append(frame.gt_pose)
+        if picker is not None:
+            picker.offer(frame)
         if frame.index in renders:
             v = _load_view(renders[frame.index], frame)
             if v is not None:
@@ -193,6 +205,9 @@ def evaluate_output_dir(
         rep.scene_scale = scene.scale
         rep.scene_alignment = rep.scene_alignment or "poses"
     _image_metrics(rep, views, None if scene is None else scene.scale, None if align is None else align.scale)
+    if picker is not None:
+        rep.heldout = evaluate_heldout(out / SCENE_FILE, picker.picked, Intrinsics(**summary.intrinsics),
+                                       None if scene is None else scene.scale)
     return rep
 
 

@@ -116,6 +116,20 @@ class EvaluatedViews:
 
 
 @dataclass
+class HeldOutReport:
+    """Novel views: frames no mapping call fitted the map to, rendered from scene.pt at their
+    tracked poses (eval/heldout.py). None (null) without such frames."""
+
+    psnr_db: float | None = None
+    ssim: float | None = None
+    depth_l1_m: float | None = None
+    """Under the same scene scale as the mapped views' depth L1."""
+    lpips: float | None = None
+    frame_indices: list[int] = field(default_factory=list)
+    note: str = "LPIPS not computed: needs the lpips package and its AlexNet weights"
+
+
+@dataclass
 class EvalReport:
     """eval.json. None (null) for anything whose inputs were missing."""
 
@@ -141,6 +155,8 @@ class EvalReport:
     mesh: MeshReport = field(default_factory=MeshReport)
     mesh_pose_aligned: MeshReport = field(default_factory=MeshReport)
     """The mesh metrics under the trajectory's Sim(3) alone, before registration."""
+    heldout: HeldOutReport = field(default_factory=HeldOutReport)
+    """The same image metrics on views the map was never fitted to."""
 
 
 def _finite_or_null(x: Any) -> Any:
@@ -215,4 +231,6 @@ def read_eval(out_dir: str | Path) -> EvalReport:
     for key in ("mesh", "mesh_pose_aligned"):
         if isinstance(data.get(key), dict):
             data[key] = _build(MeshReport, data[key], path)
+    if isinstance(data.get("heldout"), dict):
+        data["heldout"] = _build(HeldOutReport, data["heldout"], path)
     return _build(EvalReport, data, path)

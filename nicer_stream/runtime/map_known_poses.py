@@ -16,7 +16,7 @@ from nicer_stream.mapping.prior_alignment import align_to_widest_partner
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.runtime.allocator import retain_freed_memory
-from nicer_stream.runtime.checkpoint import save_scene
+from nicer_stream.io.scene_file import save_scene
 from nicer_stream.model.bound import SceneBound, bound_from_points
 from nicer_stream.model.bound_estimate import bound_from_cameras, bound_from_config, metric_points
 from nicer_stream.runtime.frame_priors import make_engine, map_frame, provider_names

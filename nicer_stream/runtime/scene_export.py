@@ -28,13 +28,21 @@ def save_render(out_dir: Path, index: int, view: RenderedImage, observed_rgb: np
     np.savez_compressed(path, rgb=view.rgb.astype(np.float32), depth=view.depth.astype(np.float32),
                         normal=view.normal.astype(np.float32), frame_index=np.int64(index),
                         **({} if timestamp is None else {"timestamp": np.float64(timestamp)}))
-    depth = view.depth / max(float(np.percentile(view.depth, 99)), 1e-6)
-    depth_rgb = cv2.applyColorMap((np.clip(depth, 0, 1) * 255).astype(np.uint8), cv2.COLORMAP_VIRIDIS)[..., ::-1] / 255.0
+    cv2.imwrite(str(path.with_suffix(".png")), render_tile(view, observed_rgb))
+    return path
+
+
+def render_tile(view: RenderedImage, observed_rgb: np.ndarray | None = None,
+                depth_max: float | None = None) -> np.ndarray:
+    """(H, n W, 3) uint8 BGR (OpenCV's order): render | input (when given) | depth (viridis, 0 to
+    `depth_max`, default the view's 99th percentile) | normals."""
+    top = depth_max or max(float(np.percentile(view.depth, 99)), 1e-6)
+    depth = np.clip(view.depth / top, 0, 1)
+    depth_rgb = cv2.applyColorMap((depth * 255).astype(np.uint8), cv2.COLORMAP_VIRIDIS)[..., ::-1] / 255.0
     normal_rgb = (1 - view.normal) / 2  # camera-frame normal facing the camera -> bright
     tiles = [view.rgb] + ([observed_rgb] if observed_rgb is not None else []) + [depth_rgb, normal_rgb]
-    png = (np.clip(np.concatenate(tiles, axis=1), 0, 1) * 255).astype(np.uint8)
-    cv2.imwrite(str(path.with_suffix(".png")), cv2.cvtColor(png, cv2.COLOR_RGB2BGR))
-    return path
+    rgb = (np.clip(np.concatenate(tiles, axis=1), 0, 1) * 255).astype(np.uint8)
+    return cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
 
 
 def depth_views(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intrinsics, cfg: SlamConfig,

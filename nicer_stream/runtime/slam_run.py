@@ -13,7 +13,7 @@ import torch
 from nicer_stream import config as config_mod
 from nicer_stream.errors import UserError
 from nicer_stream.runtime.allocator import retain_freed_memory
-from nicer_stream.runtime.checkpoint import save_scene
+from nicer_stream.io.scene_file import save_scene
 from nicer_stream.runtime.frame_priors import make_engine, provider_names
 from nicer_stream.runtime.live_outputs import MESH_RESOLUTION, LiveMapOutputs, coarse_mesh
 from nicer_stream.runtime.frame_reader import ReadAhead
@@ -259,6 +259,8 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                 stats={"keyframes": len(slam.keyframes), "lost_frames": slam.lost_frames, "dropped_frames": pacer.dropped,
                        "tracking_s_per_frame": track_pf, "mapping_s_per_frame": map_pf,
                        "mapping_iterations": slam.mapped_iters, "runtime": runtime,
+                       "mapped_frames": sorted(slam.mapped_frames),
+                       "frame_indices": list(slam.order), "keyframe_indices": list(slam.keyframes),
                        "map_versions": slam.map_version, "mapping_wait_s": slam.mapping_wait_s,
                        "sink_worker_s": sink.seconds if isinstance(sink, SinkWorker) else None,
                        "live_updates_skipped": live.skipped if live is not None else 0,

@@ -87,6 +87,7 @@ class SlamSystem:
         self.mapped_iters = 0  # mapping iterations done (0: the scene is still the initial sphere)
         self.mapping = mapping or InlineMapping()
         self.map_version = 0  # mapping calls applied; tracking reads this version of the map
+        self.mapped_frames: set[int] = set()  # frames some mapping call fitted the map to (others are held out)
         self._map_due = False  # a call the schedule asked for while the worker was busy
         self.mapping_wait_s = 0.0  # the caller's seconds in mapping: inline calls and waits for the worker
         self.rng = random.Random(cfg.seed)
@@ -267,6 +268,7 @@ class SlamSystem:
                                      progress=self._progress(label), color_start=cfg.mapping.batch_color_start,
                                      stop=self.should_stop)
         self.mapped_iters += stats.iters
+        self.mapped_frames.update(f.index for f in window)
         self.mapping_wait_s += stats.seconds
         self.map_version += 1
         if self.mapping.background:  # the worker will change the live map: tracking reads a copy
@@ -430,6 +432,7 @@ class SlamSystem:
             for k in r.job.ba:
                 self.poses[k] = r.job.poses[k]
             self.mapped_iters += r.stats.iters
+            self.mapped_frames.update(r.job.window)
             self.map_version += 1
             if r.snapshot is not None:
                 self._read_map(r.snapshot)
