@@ -33,6 +33,10 @@ def register(app: typer.Typer) -> None:
         drop_range = user_errors(parse_drop)(drop)
         user_errors(eval_command)(Path(outdir), source, max_side, stride, start, max_frames, drop_range)
 
+    from nicer_stream.cli.batch_cmd import batch_command
+
+    app.command("batch")(batch_command)
+
     from nicer_stream.cli.render_cmd import render_command
 
     app.command("render")(render_command)

@@ -93,3 +93,4 @@ def test_async_run_reports_its_runtime_and_pose_latency(tmp_path, tiny_config):
     stats = json.loads((out / od.SUMMARY_FILE).read_text())["stats"]
     assert stats["runtime"].startswith("async") and stats["map_versions"] >= 2
     assert 0 < stats["pose_latency_median_s"] <= stats["pose_latency_p95_s"]
+    assert 0 < stats["pose_latency_after_startup_median_s"] <= stats["pose_latency_after_startup_p95_s"]
