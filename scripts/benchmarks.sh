@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The measurements named in the issues (long: run one at a time on a 2-core CPU).
-# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|run-none|run-synth|run10|run10-paper|flow|speedup|iters|frontend|street|jump|async|memory] [OUTROOT]
+# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|run-none|run-synth|run10|run10-paper|flow|speedup|iters|frontend|street|jump|async|memory|batch] [OUTROOT]
 # speedup: the Replica `run` of commit BASE (default c64946b; a git worktree in OUTROOT/base_worktree)
 #   and of this tree (uncommitted edits included) back to back, then scripts/speedup_table.py
 #   (~15 min). EXTRA="..." appends arguments to both runs (e.g. EXTRA="--max-frames 3").
@@ -59,11 +59,18 @@ case "${1:-all}" in
              # SOURCE=synthetic:room?frames=40 DROP=18:23 for the demo room)
              t $NS run --source "${SOURCE:-$REPLICA}" --priors oracle --preset fast --drop "${DROP:-8:13}" ${CONFIG:+--config $CONFIG} --out $OUT/run_jump ;;
   run-synth) t $NS run --source "synthetic:room?frames=100" --priors oracle --preset fast --out $OUT/run_synth ;;
-  async)     # issue 15: the Replica run with --sync, then with the asynchronous runtime (PRIORS=, default oracle:clean)
+  async)     # issue 15: the Replica run with --sync, then with mapping on its worker thread (PRIORS=, default oracle:clean)
              mkdir -p $OUT
              t $NS run --source $REPLICA --priors ${PRIORS:-oracle:clean} --preset fast --sync --out $OUT/runtime_sync
-             t $NS run --source $REPLICA --priors ${PRIORS:-oracle:clean} --preset fast --out $OUT/runtime_async
+             t $NS run --source $REPLICA --priors ${PRIORS:-oracle:clean} --preset fast --mapping-worker on --out $OUT/runtime_async
              .venv/bin/python scripts/runtime_table.py $OUT/runtime_sync $OUT/runtime_async ;;
+  batch)     # issue 18: three synthetic logs (a cheap config) sequentially in-process (--local), then on a local
+             # Ray instance (one CPU per run: two at a time on 2 cores)
+             mkdir -p $OUT
+             printf 'max_side = 160\n[mapping]\niters = 20\nfirst_iters = 60\nfinal_iters = 20\n[tracking]\niters = 10\n' > $OUT/batch_cheap.toml
+             srcs=("synthetic:room?frames=15" "synthetic:tabletop?frames=15" "synthetic:room?frames=15&seed=1")
+             t $NS batch "${srcs[@]}" --out $OUT/batch_local --local --force --config $OUT/batch_cheap.toml --priors oracle:clean
+             t $NS batch "${srcs[@]}" --out $OUT/batch_ray --force --config $OUT/batch_cheap.toml --priors oracle:clean ;;
   memory)    # issue 15: RSS at frames 250 / 500 / 1000 of a cheap 1,000-frame run, with the keyframe cap and without
              .venv/bin/python scripts/memory_bench.py --out $OUT/mem_capped
              .venv/bin/python scripts/memory_bench.py --out $OUT/mem_uncapped --mapping-extra 'full_res_keyframes = 0' ;;

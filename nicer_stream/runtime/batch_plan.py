@@ -33,7 +33,8 @@ class SourceRecord:
     name: str
     source: str
     status: str
-    """'done', 'failed', 'interrupted', 'skipped' (outputs already complete) or 'pending'."""
+    """'done', 'failed', 'interrupted' (stopped, partial outputs written), 'cancelled' (stopped
+    before it started), 'skipped' (outputs already complete) or 'pending'."""
     frames: int | None = None
     s_per_frame: float | None = None
     ate_cm: float | None = None

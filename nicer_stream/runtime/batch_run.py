@@ -110,8 +110,9 @@ def _run_ray(req: BatchRequest, todo: list[BatchItem], opts: RunOptions, finishe
             try:
                 rec = ray.get(ref)
             except (ray.exceptions.TaskCancelledError, ray.exceptions.RayTaskError) as e:
-                rec = record_from_outputs(item, Path(req.root) / item.name, "interrupted" if cancelled else "failed",
-                                          None if cancelled else _one_line(e))
+                out = Path(req.root) / item.name
+                status = ("interrupted" if (out / "summary.json").is_file() else "cancelled") if cancelled else "failed"
+                rec = record_from_outputs(item, out, status, None if cancelled else _one_line(e))
             except ray.exceptions.WorkerCrashedError as e:  # retried `retries` times already
                 rec = record_from_outputs(item, Path(req.root) / item.name, "failed",
                                           f"the worker died {req.retries + 1} times: {_one_line(e)}")

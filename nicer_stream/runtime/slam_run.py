@@ -57,8 +57,12 @@ class RunRequest:
     live_mesh_every: int = 5
     """With a sink: a coarse mesh every this many map updates (0: only the final mesh)."""
     sync: bool = False
-    """Tracking and mapping in one thread, in order (deterministic under a seed); default: mapping
-    on its own worker thread, tracking against the last published map."""
+    """Everything in one thread, in order (deterministic under a seed); default: frames read and
+    sinks called on threads of their own, mapping as `mapping_worker` says."""
+    mapping_worker: str = "auto"
+    """'on': mapping calls on a worker thread, tracking against the last published map; 'off':
+    mapping inline with tracking; 'auto': on with a GPU or >= 4 cores. Measured on 2 cores
+    (docs/runtime.md): the worker made the Replica run 11% slower, the stages being memory-bound."""
     source_opts: SourceOptions = field(default_factory=SourceOptions)
 
 
@@ -72,6 +76,15 @@ class RunOutcome:
     error: str | None = None
     """The one-line error that ended the run early (also in summary.json)."""
 
+
+
+def mapping_on_worker(req: RunRequest) -> bool:
+    """Whether mapping runs on its own thread (RunRequest.mapping_worker)."""
+    if req.mapping_worker not in ("auto", "on", "off"):
+        raise UserError(f"--mapping-worker must be auto, on or off, got {req.mapping_worker!r}")
+    if req.sync or req.mapping_worker == "off":
+        return False
+    return req.mapping_worker == "on" or req.device.startswith("cuda") or sum(split_threads()) >= 4
 
 
 def _one_line(e: Exception) -> str:
@@ -95,8 +108,10 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     timer = StageTimer()
     all_threads = torch.get_num_threads()
     track_threads, map_threads = split_threads()
+    use_worker = mapping_on_worker(req)
     runtime = ("sync (one thread)" if req.sync else
-               f"async (tracking {track_threads} + mapping {map_threads} intra-op threads)")
+               f"async (mapping worker; tracking {track_threads} + mapping {map_threads} intra-op threads)" if use_worker
+               else "async (reader and sink threads; mapping inline with tracking)")
     print(f"opening {req.source} (preset {cfg.preset}, priors {req.priors}, device {req.device}); "
           f"{runtime}; mapping progress on stderr", flush=True)
     source, _ = open_configured(req.source, req.source_opts, cfg)
@@ -106,7 +121,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     if engine.depth_normal.auto_reason:
         print(engine.depth_normal.auto_reason, flush=True)
     stage = PriorStage(engine)
-    worker = None if req.sync else MappingThread(map_threads, threads_alone=all_threads)
+    worker = MappingThread(map_threads, threads_alone=all_threads) if use_worker else None
     slam = SlamSystem(cfg, req.device,
                       progress=None if req.quiet else lambda label: Progress(label, MAPPING_PROGRESS_EVERY_S),
                       stereo=engine.depth_normal.name == "stereo", should_stop=lambda: stop.requested or failed,

@@ -12,7 +12,7 @@ SUMMARY_KEYS = {"frames", "preset", "device", "priors", "wall_s", "stages_s", "s
                 "peak_rss_mb", "versions", "interrupted"}
 EVAL_KEYS = {"ate_rmse_m", "ate_se3_rmse_m", "rpe_trans_m", "rpe_rot_deg", "depth_l1_m", "psnr_db", "ssim",
              "priors", "sim3_scale", "scene_scale", "scene_alignment", "depth_l1_pose_aligned_m", "evaluated_views",
-             "mesh", "mesh_pose_aligned"}
+             "mesh", "mesh_pose_aligned", "heldout"}
 MESH_KEYS = {"acc_m", "comp_m", "comp_ratio", "normal_consistency", "reference"}
 
 
@@ -78,11 +78,13 @@ def test_eval_round_trip_keys_and_nulls(tmp_path):
         ate_rmse_m=0.01, psnr_db=float("inf"), ssim=0.9, priors=["oracle"], sim3_scale=1.2,
         evaluated_views=od.EvaluatedViews([0, 5], 160, 91),
         mesh=od.MeshReport(0.02, 0.03, 0.9, 0.8, "gt_depth_points"),
+        heldout=od.HeldOutReport(psnr_db=25.0, frame_indices=[3]),
     )
     data = json.loads(od.write_eval(tmp_path, rep).read_text())
     assert set(data) == EVAL_KEYS and set(data["mesh"]) == MESH_KEYS
     assert data["psnr_db"] is None and data["depth_l1_m"] is None  # inf and missing -> null
     assert data["evaluated_views"]["frame_indices"] == [0, 5] and "GT-valid" in data["evaluated_views"]["pixel_rule"]
     back = od.read_eval(tmp_path)
-    assert back.mesh == rep.mesh and back.evaluated_views == rep.evaluated_views
+    assert back.mesh == rep.mesh and back.evaluated_views == rep.evaluated_views and back.heldout == rep.heldout
+    assert data["heldout"]["lpips"] is None and "LPIPS" in data["heldout"]["note"]
     assert back.ate_rmse_m == 0.01 and back.psnr_db is None

@@ -87,3 +87,29 @@ def test_a_killed_worker_is_retried_and_the_source_completes(tmp_path, tiny_conf
     rec = json.loads((root / "batch.json").read_text())["sources"][0]
     assert rec["status"] == "done" and rec["attempts"] == 2, rec
     assert od.read_summary(root / "room_frames_12").frames == 12
+
+
+def test_ctrl_c_stops_scheduling_keeps_partial_outputs_and_writes_batch_json(tmp_path, tiny_config):
+    pytest.importorskip("ray")
+    root = tmp_path / "root"
+    exe = Path(sys.executable).with_name("nicer-stream")
+    proc = subprocess.Popen([str(exe), "batch", "synthetic:room?frames=40", "synthetic:room?frames=41",
+                             "synthetic:room?frames=42", "--out", str(root), "--config", str(tiny_config),
+                             "--priors", "oracle:clean", "--no-eval"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    first = root / "room_frames_40" / PID_FILE
+    deadline = time.time() + 120
+    while not first.is_file() and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.2)
+    assert first.is_file(), proc.communicate()[0]
+    time.sleep(3.0)
+    proc.send_signal(signal.SIGINT)
+    out = proc.communicate(timeout=180)[0]
+    assert proc.returncode == 130, out
+    rep = json.loads((root / "batch.json").read_text())
+    assert rep["interrupted"] is True
+    statuses = {r["name"]: r["status"] for r in rep["sources"]}
+    assert statuses["room_frames_40"] == "interrupted", out
+    assert set(statuses.values()) <= {"interrupted", "cancelled", "pending", "done"}
+    assert od.read_summary(root / "room_frames_40").interrupted  # the run wrote its partial outputs
+    assert (root / "room_frames_40" / od.TRAJECTORY_FILE).is_file()

@@ -88,7 +88,7 @@ def test_tracking_goes_on_while_a_mapping_call_runs(tiny_config):
 
 
 def test_async_run_reports_its_runtime_and_pose_latency(tmp_path, tiny_config):
-    out = run_slam(RunRequest(source="synthetic:room?frames=5", out_dir=tmp_path / "out", priors="none",
+    out = run_slam(RunRequest(source="synthetic:room?frames=5", out_dir=tmp_path / "out", priors="none", mapping_worker="on",
                               config_file=str(tiny_config))).out_dir
     stats = json.loads((out / od.SUMMARY_FILE).read_text())["stats"]
     assert stats["runtime"].startswith("async") and stats["map_versions"] >= 2

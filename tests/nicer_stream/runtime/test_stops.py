@@ -28,14 +28,15 @@ MOMENTS = {
 }
 
 
-def _launch(tmp_path: Path, tiny_toml: str, change, frames: int):
+def _launch(tmp_path: Path, tiny_toml: str, change, frames: int, mapping_worker: str = "auto"):
     cfg = tmp_path / "cfg.toml"
     assert change is None or change[0] in tiny_toml
     cfg.write_text(tiny_toml.replace(*change) if change else tiny_toml)
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "nicer_stream.cli.main", "run", "--source", f"synthetic:room?frames={frames}",
            "--priors", "oracle:clean", "--config", str(cfg), "--out", str(out),
-           "--sink", f"rerun:{tmp_path / 'rec.rrd'}", "--sink", f"mcap:{tmp_path / 'rec.mcap'}"]
+           "--sink", f"rerun:{tmp_path / 'rec.rrd'}", "--sink", f"mcap:{tmp_path / 'rec.mcap'}",
+           "--mapping-worker", mapping_worker]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1)
     lines: queue.Queue[str] = queue.Queue()
     threading.Thread(target=lambda: [lines.put(line) for line in proc.stdout], daemon=True).start()
@@ -61,7 +62,8 @@ def _wait_for(proc, lines, pattern: str, timeout_s: float = 120.0) -> list[str]:
                                         ("mesh_extraction", signal.SIGINT)])
 def test_a_stop_writes_what_was_computed_and_closes_the_recordings(tmp_path, tiny_toml, moment, sig):
     extra, pattern = MOMENTS[moment]
-    proc, lines, out = _launch(tmp_path, tiny_toml, extra, frames=40)
+    # Mid-sequence with mapping on its worker thread: the call in hand stops too.
+    proc, lines, out = _launch(tmp_path, tiny_toml, extra, frames=40, mapping_worker="on" if moment == "mid_sequence" else "auto")
     _wait_for(proc, lines, pattern)
     time.sleep(0.3)
     t_sig = time.monotonic()
