@@ -68,20 +68,27 @@ def test_batch_runs_every_source_reports_the_bad_one_and_skips_complete_ones(tmp
             ray.shutdown()
 
 
-def test_a_killed_worker_is_retried_and_the_source_completes(tmp_path, tiny_config):
-    pytest.importorskip("ray")
-    root = tmp_path / "root"
+def _batch_until_a_worker_runs(root: Path, sources: list[str], first: str, config, *extra):
+    """Start `nicer-stream batch` in a process; return it once source `first`'s worker wrote its pid."""
     exe = Path(sys.executable).with_name("nicer-stream")
-    proc = subprocess.Popen([str(exe), "batch", "synthetic:room?frames=12", "--out", str(root), "--config", str(tiny_config),
-                             "--priors", "oracle:clean", "--no-eval", "--retries", "1"],
+    proc = subprocess.Popen([str(exe), "batch", *sources, "--out", str(root), "--config", str(config),
+                             "--priors", "oracle:clean", "--no-eval", *extra],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    pid_file = root / "room_frames_12" / PID_FILE
+    pid_file = root / first / PID_FILE
     deadline = time.time() + 120
     while not pid_file.is_file() and time.time() < deadline and proc.poll() is None:
         time.sleep(0.2)
     assert pid_file.is_file(), proc.communicate()[0]
+    return proc, int(pid_file.read_text())
+
+
+def test_a_killed_worker_is_retried_and_the_source_completes(tmp_path, tiny_config):
+    pytest.importorskip("ray")
+    root = tmp_path / "root"
+    proc, pid = _batch_until_a_worker_runs(root, ["synthetic:room?frames=12"], "room_frames_12", tiny_config,
+                                           "--retries", "1")
     time.sleep(2.0)  # mid-run
-    os.kill(int(pid_file.read_text()), signal.SIGKILL)
+    os.kill(pid, signal.SIGKILL)
     out = proc.communicate(timeout=300)[0]
     assert proc.returncode == 0, out
     rec = json.loads((root / "batch.json").read_text())["sources"][0]
@@ -92,16 +99,8 @@ def test_a_killed_worker_is_retried_and_the_source_completes(tmp_path, tiny_conf
 def test_ctrl_c_stops_scheduling_keeps_partial_outputs_and_writes_batch_json(tmp_path, tiny_config):
     pytest.importorskip("ray")
     root = tmp_path / "root"
-    exe = Path(sys.executable).with_name("nicer-stream")
-    proc = subprocess.Popen([str(exe), "batch", "synthetic:room?frames=40", "synthetic:room?frames=41",
-                             "synthetic:room?frames=42", "--out", str(root), "--config", str(tiny_config),
-                             "--priors", "oracle:clean", "--no-eval"],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    first = root / "room_frames_40" / PID_FILE
-    deadline = time.time() + 120
-    while not first.is_file() and time.time() < deadline and proc.poll() is None:
-        time.sleep(0.2)
-    assert first.is_file(), proc.communicate()[0]
+    sources = [f"synthetic:room?frames={n}" for n in (40, 41, 42)]
+    proc, _ = _batch_until_a_worker_runs(root, sources, "room_frames_40", tiny_config)
     time.sleep(3.0)
     proc.send_signal(signal.SIGINT)
     out = proc.communicate(timeout=180)[0]
