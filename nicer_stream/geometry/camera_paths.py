@@ -26,12 +26,14 @@ def look_at(eye: np.ndarray, target: np.ndarray, down: np.ndarray) -> np.ndarray
     return T
 
 
-def orbit(poses: np.ndarray, n: int, centre: np.ndarray | None = None, radius_scale: float = 1.0) -> np.ndarray:
+def orbit(poses: np.ndarray, n: int, centre: np.ndarray | None = None, radius_scale: float = 1.0,
+          arc_deg: float = 360.0) -> np.ndarray:
     """(n, 4, 4) cameras on a horizontal circle around `centre` (3,) (default: the point nearest
     all the cameras' optical axes), looking at it. `poses` (N, 4, 4) are the run's cameras: their
     `world_down` is the circle's axis, their mean horizontal distance to the centre
     (x `radius_scale`) the radius, their mean height the circle's height; it starts nearest
-    the first camera."""
+    the first camera. `arc_deg` < 360 sweeps only that arc (both ends included), turning the way
+    the last camera lies from the first: a partial scan is then seen from where it was filmed."""
     poses = np.asarray(poses, np.float64)
     down = world_down(poses)
     centre = _gaze_centre(poses) if centre is None else np.asarray(centre, np.float64)
@@ -41,8 +43,11 @@ def orbit(poses: np.ndarray, n: int, centre: np.ndarray | None = None, radius_sc
     radius = radius_scale * max(float(np.linalg.norm(flat, axis=1).mean()), 1e-3)
     start = flat[0] / max(np.linalg.norm(flat[0]), 1e-12) if np.linalg.norm(flat[0]) > 1e-9 else _any_perp(down)
     side = np.cross(down, start)
+    if flat[-1] @ side < 0:
+        side = -side
+    full = arc_deg >= 360.0
     out = []
-    for a in np.linspace(0.0, 2 * np.pi, n, endpoint=False):
+    for a in np.linspace(0.0, np.radians(min(arc_deg, 360.0)), n, endpoint=not full):
         eye = centre + height * down + radius * (np.cos(a) * start + np.sin(a) * side)
         out.append(look_at(eye, centre, down))
     return np.stack(out)

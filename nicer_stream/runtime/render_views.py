@@ -35,11 +35,14 @@ class ViewRequest:
     out_dir: Path
     """The run's output directory (scene.pt, summary.json, trajectory.tum)."""
     path: str = "frames"
-    """One of PATHS: the tracked poses, `poses_file`, an orbit, or poses between keyframes."""
+    """One of PATHS: the tracked poses, `poses_file`, an orbit around the centre of the observed
+    space (`observed_centre`), or poses between keyframes."""
     poses_file: Path | None = None
     """TUM file of T_world_cam in the run's world frame (path 'poses')."""
     n: int = 60
     """Views on the orbit; poses inserted between consecutive keyframes ('interpolate')."""
+    arc_deg: float = 360.0
+    """The orbit's sweep (< 360: from the first camera towards the last; partial scans)."""
     scale: float = 1.0
     """Image size relative to the run's."""
     dest: Path | None = None
@@ -69,10 +72,23 @@ def camera_path(req: ViewRequest, summary: od.Summary, centre: np.ndarray) -> tu
     if req.n < 1:
         raise UserError(f"--orbit / --interpolate need a count >= 1, got {req.n}")
     if req.path == "orbit":
-        return np.arange(req.n) / req.fps, orbit(T, req.n, centre=centre)
+        return np.arange(req.n) / req.fps, orbit(T, req.n, centre=centre, arc_deg=req.arc_deg)
     keys = _keyframe_rows(summary, len(T))
     path = interpolate(T[keys], req.n)
     return np.arange(len(path)) / req.fps, path
+
+
+def observed_centre(model, beta) -> np.ndarray:
+    """(3,) world: the centroid of the space the mapping samples visited, weighted by their counts
+    (the beta field's counter); the scene bound's centre before any mapping. The middle of what
+    was seen, not of the bounding box, which a partial scan fills only in part."""
+    counts = beta.counts.double()
+    if not bool((counts > 0).any()):
+        return np.asarray(model.bound.centre, np.float64)
+    centres, _ = beta.voxel_betas()
+    w = counts[counts > 0]
+    mean = (centres.double() * w[:, None]).sum(0) / w.sum()
+    return model.bound.denormalise(mean[None].float()).double().numpy()[0]
 
 
 def _tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -107,7 +123,7 @@ def render_views(req: ViewRequest) -> tuple[Path, int]:
         raise UserError(f"{out / od.SUMMARY_FILE} has no intrinsics: rerun to record them")
     cfg, model, beta = load_scene(out / SCENE_FILE, req.device)
     intr = Intrinsics(**summary.intrinsics).scaled(req.scale) if req.scale != 1.0 else Intrinsics(**summary.intrinsics)
-    times, poses = camera_path(req, summary, np.asarray(model.bound.centre))
+    times, poses = camera_path(req, summary, observed_centre(model, beta))
     dest = Path(req.dest) if req.dest else out / "views"
     dest.mkdir(parents=True, exist_ok=True)
     write_tum(dest / "poses.tum", times, poses)

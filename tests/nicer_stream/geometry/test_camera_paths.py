@@ -32,6 +32,9 @@ def test_orbit_circles_the_centre_looking_at_it():
     to_centre = -eyes / np.linalg.norm(eyes, axis=1, keepdims=True)
     np.testing.assert_allclose(path[:, :3, 2], to_centre, atol=1e-9)
     np.testing.assert_allclose(eyes[0], cams[0, :3, 3], atol=1e-9)  # starts at the first camera
+    arc = orbit(cams, 5, centre=np.zeros(3), arc_deg=90)  # from the first camera towards the last
+    angles = np.degrees(np.arctan2(arc[:, 2, 3], arc[:, 0, 3]))
+    np.testing.assert_allclose(angles, [0, 22.5, 45, 67.5, 90], atol=1e-9)
     default = orbit(cams, 4)  # the centre from the optical axes: they meet at the origin
     np.testing.assert_allclose(np.linalg.norm(default[:, :3, 3][:, [0, 2]], axis=1), 2.0, atol=1e-6)
 
