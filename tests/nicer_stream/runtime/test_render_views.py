@@ -79,3 +79,23 @@ def test_eval_reports_views_the_map_never_saw(run_dir):
     assert h.frame_indices and not set(h.frame_indices) & mapped
     assert h.psnr_db is not None and np.isfinite(h.psnr_db) and h.depth_l1_m is not None
     assert h.lpips is None and "LPIPS" in h.note  # never faked
+
+
+def test_orbit_centre_is_the_count_weighted_centre_of_the_mapped_space(tiny_config):
+    import torch
+
+    from nicer_stream.config import load
+    from nicer_stream.model.bound import SceneBound
+    from nicer_stream.model.scene import SceneModel
+    from nicer_stream.render.beta import BetaField
+    from nicer_stream.runtime.render_views import observed_centre
+
+    cfg = load("fast", tiny_config)
+    model, beta = SceneModel(cfg.model, SceneBound((1.0, 2.0, 3.0), 2.0, "config")), BetaField(cfg.render)
+    np.testing.assert_allclose(observed_centre(model, beta), [1.0, 2.0, 3.0])  # nothing mapped: the bound's
+    a, b = torch.tensor([[0.5, 0.5, 0.5]]), torch.tensor([[-0.5, 0.5, 0.5]])  # normalised
+    with torch.no_grad():
+        beta.counts[beta.voxel_index(a)] += 3
+        beta.counts[beta.voxel_index(b)] += 1
+    want = model.bound.denormalise(torch.tensor([[0.25, 0.5, 0.5]]))[0].numpy()
+    np.testing.assert_allclose(observed_centre(model, beta), want, atol=2 * 2.0 / cfg.render.beta_voxels)
