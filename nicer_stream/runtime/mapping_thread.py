@@ -57,6 +57,16 @@ class MappingThread:
         """A job is in flight or its result is not collected yet."""
         return self._future is not None
 
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until the job in hand has finished (not collected: `poll` hands it over); False on timeout."""
+        if self._future is None:
+            return True
+        try:
+            self._future.exception(timeout)
+        except TimeoutError:
+            return False
+        return True
+
     def poll(self) -> list[MapResult]:
         if self._future is None or not self._future.done():
             return []

@@ -99,8 +99,8 @@ def test_a_killed_worker_is_retried_and_the_source_completes(tmp_path, tiny_conf
 def test_ctrl_c_stops_scheduling_keeps_partial_outputs_and_writes_batch_json(tmp_path, tiny_config):
     pytest.importorskip("ray")
     root = tmp_path / "root"
-    sources = [f"synthetic:room?frames={n}" for n in (40, 41, 42)]
-    proc, _ = _batch_until_a_worker_runs(root, sources, "room_frames_40", tiny_config)
+    sources = [f"synthetic:room?frames={n}" for n in (80, 81, 82)]
+    proc, _ = _batch_until_a_worker_runs(root, sources, "room_frames_80", tiny_config)
     time.sleep(3.0)
     proc.send_signal(signal.SIGINT)
     out = proc.communicate(timeout=180)[0]
@@ -108,7 +108,7 @@ def test_ctrl_c_stops_scheduling_keeps_partial_outputs_and_writes_batch_json(tmp
     rep = json.loads((root / "batch.json").read_text())
     assert rep["interrupted"] is True
     statuses = {r["name"]: r["status"] for r in rep["sources"]}
-    assert statuses["room_frames_40"] == "interrupted", out
+    assert statuses["room_frames_80"] == "interrupted", out
     assert set(statuses.values()) <= {"interrupted", "cancelled", "pending", "done"}
-    assert od.read_summary(root / "room_frames_40").interrupted  # the run wrote its partial outputs
-    assert (root / "room_frames_40" / od.TRAJECTORY_FILE).is_file()
+    assert od.read_summary(root / "room_frames_80").interrupted  # the run wrote its partial outputs
+    assert (root / "room_frames_80" / od.TRAJECTORY_FILE).is_file()
