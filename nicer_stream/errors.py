@@ -7,3 +7,8 @@ class UserError(Exception):
 
 class SourceError(UserError):
     """A frame source cannot be opened or read."""
+
+
+def one_line(e: BaseException) -> str:
+    """`Type: first line of the message`: how a run, a batch row or summary.json reports an error."""
+    return f"{type(e).__name__}: {e}".strip().splitlines()[0]

@@ -10,51 +10,23 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Mapping, Sequence
+from typing import Sequence
 
 from nicer_stream.errors import UserError
-from sinks.base import Sink
+from sinks.base import ForwardingSink, Sink
 
 SPECS = ("rerun:FILE.rrd", "rerun", "rerun+grpc:URL", "mcap:FILE.mcap")
 
 
-class MultiSink(Sink):
+class MultiSink(ForwardingSink):
     """Forwards every call to several sinks; closing closes all of them even if one fails."""
 
     def __init__(self, sinks: Sequence[Sink]) -> None:
         self.sinks = list(sinks)
 
-    def log_pose(self, *args, **kwargs) -> None:
+    def _forward(self, name: str, *args, **kwargs) -> None:
         for s in self.sinks:
-            s.log_pose(*args, **kwargs)
-
-    def log_frame(self, *args, **kwargs) -> None:
-        for s in self.sinks:
-            s.log_frame(*args, **kwargs)
-
-    def log_trajectory(self, *args, **kwargs) -> None:
-        for s in self.sinks:
-            s.log_trajectory(*args, **kwargs)
-
-    def log_mesh(self, *args, **kwargs) -> None:
-        for s in self.sinks:
-            s.log_mesh(*args, **kwargs)
-
-    def log_beta_voxels(self, *args, **kwargs) -> None:
-        for s in self.sinks:
-            s.log_beta_voxels(*args, **kwargs)
-
-    def log_map_render(self, *args, **kwargs) -> None:
-        for s in self.sinks:
-            s.log_map_render(*args, **kwargs)
-
-    def log_keyframes(self, *args, **kwargs) -> None:
-        for s in self.sinks:
-            s.log_keyframes(*args, **kwargs)
-
-    def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
-        for s in self.sinks:
-            s.log_scalars(index, values)
+            getattr(s, name)(*args, **kwargs)
 
     def close(self) -> None:
         first: BaseException | None = None

@@ -79,6 +79,39 @@ class Sink(ABC):
         self.close()
 
 
+class ForwardingSink(Sink):
+    """A sink that hands every log call, by method name, to `_forward` (MultiSink: to several
+    sinks; the runtime's SinkWorker: to a thread)."""
+
+    @abstractmethod
+    def _forward(self, name: str, *args, **kwargs) -> None:
+        """Make (or arrange) the call `name(*args, **kwargs)` on the wrapped sink(s)."""
+
+    def log_pose(self, *args, **kwargs) -> None:
+        self._forward("log_pose", *args, **kwargs)
+
+    def log_frame(self, *args, **kwargs) -> None:
+        self._forward("log_frame", *args, **kwargs)
+
+    def log_trajectory(self, *args, **kwargs) -> None:
+        self._forward("log_trajectory", *args, **kwargs)
+
+    def log_mesh(self, *args, **kwargs) -> None:
+        self._forward("log_mesh", *args, **kwargs)
+
+    def log_beta_voxels(self, *args, **kwargs) -> None:
+        self._forward("log_beta_voxels", *args, **kwargs)
+
+    def log_map_render(self, *args, **kwargs) -> None:
+        self._forward("log_map_render", *args, **kwargs)
+
+    def log_keyframes(self, *args, **kwargs) -> None:
+        self._forward("log_keyframes", *args, **kwargs)
+
+    def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
+        self._forward("log_scalars", index, values)
+
+
 def pose_tq(T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(4, 4) pose -> translation (3,) and unit quaternion (qx, qy, qz, qw), qw >= 0, float64."""
     row = pose_to_tum(torch.as_tensor(np.asarray(T_world_cam, dtype=np.float64))).numpy()

@@ -18,11 +18,10 @@ import trimesh
 
 from nicer_stream.errors import UserError
 from nicer_stream.eval import image, mesh as mesh_m, reference, registration, trajectory
-from nicer_stream.eval.heldout import HeldOutPicker, evaluate_heldout
-from nicer_stream.types import Intrinsics
+from nicer_stream.eval.heldout import HeldOutPicker, render_heldout
 from nicer_stream.io import output_dir as od
 from nicer_stream.io.trajectory import read_tum
-from nicer_stream.types import Frame
+from nicer_stream.types import Frame, Intrinsics
 from nicer_stream.io.scene_file import SCENE_FILE
 from sources.base import FrameSource, SourceOptions, resize_frame
 
@@ -106,18 +105,34 @@ def _depth_l1(views: list[_View], scale: float) -> float | None:
     return float(np.mean(l1)) if l1 else None
 
 
+def _psnr_ssim(views: list[_View]) -> tuple[float, float]:
+    """PSNR and SSIM averaged over `views` (not empty)."""
+    return (float(np.mean([image.psnr(v.rgb, v.gt_rgb) for v in views])),
+            float(np.mean([image.ssim(v.rgb, v.gt_rgb) for v in views])))
+
+
 def _image_metrics(rep: od.EvalReport, views: list[_View], scale: float | None, pose_scale: float | None) -> None:
     """Per-view PSNR/SSIM/depth L1 (under `scale`, and under the trajectory's `pose_scale`), averaged over views."""
     if not views:
         return
-    rep.psnr_db = float(np.mean([image.psnr(v.rgb, v.gt_rgb) for v in views]))
-    rep.ssim = float(np.mean([image.ssim(v.rgb, v.gt_rgb) for v in views]))
+    rep.psnr_db, rep.ssim = _psnr_ssim(views)
     if scale is not None:
         rep.depth_l1_m = _depth_l1(views, scale)
         rep.depth_l1_pose_aligned_m = _depth_l1(views, pose_scale)
     rep.evaluated_views = od.EvaluatedViews(
         frame_indices=[v.frame_index for v in views], width=views[0].rgb.shape[1], height=views[0].rgb.shape[0]
     )
+
+
+def _heldout_metrics(rendered: list, scale: float | None) -> od.HeldOutReport:
+    """The mapped views' image metrics on the held-out renders ((frame, render) pairs)."""
+    rep = od.HeldOutReport()
+    views = [_View(f.index, r.rgb, r.depth, f.rgb, f.gt_depth) for f, r in rendered]
+    if views:
+        rep.psnr_db, rep.ssim = _psnr_ssim(views)
+        rep.depth_l1_m = _depth_l1(views, scale) if scale is not None else None
+        rep.frame_indices = [v.frame_index for v in views]
+    return rep
 
 
 def _load_mesh(path: Path) -> trimesh.Trimesh | None:
@@ -206,7 +221,7 @@ def evaluate_output_dir(
         rep.scene_alignment = rep.scene_alignment or "poses"
     _image_metrics(rep, views, None if scene is None else scene.scale, None if align is None else align.scale)
     if picker is not None:
-        rep.heldout = evaluate_heldout(out / SCENE_FILE, picker.picked, Intrinsics(**summary.intrinsics),
+        rep.heldout = _heldout_metrics(render_heldout(out / SCENE_FILE, picker.picked, Intrinsics(**summary.intrinsics)),
                                        None if scene is None else scene.scale)
     return rep
 

@@ -1,6 +1,6 @@
 """Held-out views: frames no mapping call fitted the map to (not keyframes, never a mapping
-call's frame), rendered from the run's saved scene at their tracked poses and compared with
-the source's images and depth: novel-view synthesis as the paper reports it, on views SLAM
+call's frame), rendered from the run's saved scene at their tracked poses (eval/evaluate.py compares them
+with the source's images and depth as it does the mapped views): novel-view synthesis as the paper reports it, on views SLAM
 tracked but never mapped.
 
 LPIPS is not computed: it needs the `lpips` package and its AlexNet weights, which this
@@ -14,10 +14,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from nicer_stream.eval import image
-from nicer_stream.io.output_dir import HeldOutReport
+from nicer_stream.io.scene_file import load_scene
+from nicer_stream.render.renderer import RenderedImage, render_image
 from nicer_stream.types import Frame, Intrinsics
 from sources.base import SourceOptions, resize_frame
+
 
 class HeldOutPicker:
     """Chooses up to `n` evenly spread held-out frames while the source is iterated once:
@@ -41,31 +42,16 @@ class HeldOutPicker:
         self.seen += 1
 
 
-def evaluate_heldout(scene_path: Path, picked: list[tuple[Frame, np.ndarray]], intr: Intrinsics,
-                     depth_scale: float | None) -> HeldOutReport:
-    """Render each picked frame's tracked pose (estimate world) at the run's intrinsics `intr`
-    and compare with the frame resized to that size."""
-    from nicer_stream.render.renderer import render_image
-    from nicer_stream.io.scene_file import load_scene
-
-    rep = HeldOutReport()
+def render_heldout(scene_path: Path, picked: list[tuple[Frame, np.ndarray]],
+                   intr: Intrinsics) -> list[tuple[Frame, RenderedImage]]:
+    """Each picked frame resized to the run's intrinsics `intr`, with the render of its tracked
+    pose (estimate world) from the saved scene; frames of another aspect are left out."""
     if not picked:
-        return rep
+        return []
     cfg, model, beta = load_scene(scene_path)
-    psnr, ssim, l1 = [], [], []
+    out = []
     for frame, T in picked:
         f = resize_frame(frame, SourceOptions(max_side=max(intr.width, intr.height)))
-        if (f.width, f.height) != (intr.width, intr.height):
-            continue
-        view = render_image(model, beta, torch.as_tensor(T, dtype=torch.float32), intr, cfg.render)
-        psnr.append(image.psnr(view.rgb, f.rgb))
-        ssim.append(image.ssim(view.rgb, f.rgb))
-        if depth_scale is not None and f.gt_depth is not None:
-            d = image.depth_l1(view.depth, f.gt_depth, depth_scale)
-            if d is not None:
-                l1.append(d)
-        rep.frame_indices.append(frame.index)
-    rep.psnr_db = float(np.mean(psnr)) if psnr else None
-    rep.ssim = float(np.mean(ssim)) if ssim else None
-    rep.depth_l1_m = float(np.mean(l1)) if l1 else None
-    return rep
+        if (f.width, f.height) == (intr.width, intr.height):
+            out.append((f, render_image(model, beta, torch.as_tensor(T, dtype=torch.float32), intr, cfg.render)))
+    return out

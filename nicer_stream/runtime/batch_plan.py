@@ -11,7 +11,7 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from nicer_stream.errors import UserError
+from nicer_stream.errors import UserError, one_line
 from nicer_stream.io import output_dir as od
 
 BATCH_FILE = "batch.json"
@@ -161,7 +161,7 @@ def run_one(item: BatchItem, root: str, opts: RunOptions) -> SourceRecord:
     except KeyboardInterrupt:
         return record_from_outputs(item, out, "interrupted")
     except Exception as e:  # UserError (bad file, no camera topic, ...) or a bug: one line
-        return record_from_outputs(item, out, "failed", f"{type(e).__name__}: {e}".splitlines()[0])
+        return record_from_outputs(item, out, "failed", one_line(e))
     finally:
         (out / PID_FILE).unlink(missing_ok=True)
 

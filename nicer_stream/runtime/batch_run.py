@@ -14,7 +14,7 @@ import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from nicer_stream.errors import UserError
+from nicer_stream.errors import UserError, one_line
 from nicer_stream.runtime.batch_plan import (BatchItem, BatchProgress, BatchReport, RunOptions, SourceRecord,
                                              is_complete, record_from_outputs, run_one, write_report)
 from nicer_stream.runtime.stop import StopSignals
@@ -112,10 +112,10 @@ def _run_ray(req: BatchRequest, todo: list[BatchItem], opts: RunOptions, finishe
             except (ray.exceptions.TaskCancelledError, ray.exceptions.RayTaskError) as e:
                 out = Path(req.root) / item.name
                 status = ("interrupted" if (out / "summary.json").is_file() else "cancelled") if cancelled else "failed"
-                rec = record_from_outputs(item, out, status, None if cancelled else _one_line(e))
+                rec = record_from_outputs(item, out, status, None if cancelled else one_line(e)[:300])
             except ray.exceptions.WorkerCrashedError as e:  # retried `retries` times already
                 rec = record_from_outputs(item, Path(req.root) / item.name, "failed",
-                                          f"the worker died {req.retries + 1} times: {_one_line(e)}")
+                                          f"the worker died {req.retries + 1} times: {one_line(e)[:300]}")
             finished(rec)
 
 
@@ -132,7 +132,3 @@ def _task(item: BatchItem, root: str, opts: RunOptions, cpus: float) -> SourceRe
     rec.attempts = n
     attempts_file.unlink(missing_ok=True)
     return rec
-
-
-def _one_line(e: BaseException) -> str:
-    return f"{type(e).__name__}: {e}".strip().splitlines()[0][:300]

@@ -9,7 +9,6 @@ the two stages split the cores between them (`split_threads`).
 from __future__ import annotations
 
 import os
-import time
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Callable
 
@@ -18,10 +17,14 @@ import torch
 from nicer_stream.slam.map_jobs import MapJob, MapResult
 
 
+def available_cores() -> int:
+    """The cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
 def split_threads(total: int | None = None) -> tuple[int, int]:
-    """(tracking, mapping) intra-op threads for `total` cores (default: this process's)."""
-    if total is None:
-        total = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    """(tracking, mapping) intra-op threads for `total` cores (default: `available_cores`)."""
+    total = available_cores() if total is None else total
     mapping = max(1, (total + 1) // 2)
     return max(1, total - mapping), mapping
 
@@ -36,8 +39,6 @@ class MappingThread:
         self.threads_alone = threads_alone or threads  # for a closing job: the caller only waits
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="mapping")
         self._future: Future | None = None
-        self.busy_s = 0.0  # the worker's seconds in jobs
-        self.jobs = 0
 
     def submit(self, job: MapJob, run: Callable[[MapJob], MapResult]) -> None:
         if self._future is not None:
@@ -46,12 +47,7 @@ class MappingThread:
 
     def _call(self, run: Callable[[MapJob], MapResult], job: MapJob) -> MapResult:
         torch.set_num_threads(self.threads_alone if job.closing else self.threads)  # this thread's own
-        t0 = time.perf_counter()
-        try:
-            return run(job)
-        finally:
-            self.busy_s += time.perf_counter() - t0
-            self.jobs += 1
+        return run(job)
 
     def busy(self) -> bool:
         """A job is in flight or its result is not collected yet."""

@@ -11,17 +11,16 @@ import threading
 import time
 from typing import Callable, Mapping
 
-import numpy as np
 import torch
 
-from sinks.base import Sink
+from sinks.base import ForwardingSink, Sink
 
 log = logging.getLogger(__name__)
 
 _STOP = object()
 
 
-class SinkWorker(Sink):
+class SinkWorker(ForwardingSink):
     """A `Sink` that forwards every call to `sink` on a worker thread (arrays passed in must not
     be modified afterwards: every caller here passes fresh ones). `submit(fn)` queues other work
     that ends in sink calls (live map renders). A failing call is logged once and the sink is
@@ -58,33 +57,12 @@ class SinkWorker(Sink):
                 log.warning("sink call failed, no further sink output: %s: %s", type(e).__name__, e)
             self.seconds += time.perf_counter() - t0
 
-    def _call(self, name: str, *args, **kwargs) -> None:
+    def _forward(self, name: str, *args, **kwargs) -> None:
         method = getattr(self.sink, name)
         self.submit(lambda: method(*args, **kwargs))
 
-    def log_pose(self, *args, **kwargs) -> None:
-        self._call("log_pose", *args, **kwargs)
-
-    def log_frame(self, *args, **kwargs) -> None:
-        self._call("log_frame", *args, **kwargs)
-
-    def log_trajectory(self, *args, **kwargs) -> None:
-        self._call("log_trajectory", *args, **kwargs)
-
-    def log_mesh(self, *args, **kwargs) -> None:
-        self._call("log_mesh", *args, **kwargs)
-
-    def log_beta_voxels(self, *args, **kwargs) -> None:
-        self._call("log_beta_voxels", *args, **kwargs)
-
-    def log_map_render(self, *args, **kwargs) -> None:
-        self._call("log_map_render", *args, **kwargs)
-
-    def log_keyframes(self, poses: np.ndarray) -> None:
-        self._call("log_keyframes", poses)
-
     def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
-        self._call("log_scalars", index, dict(values))
+        super().log_scalars(index, dict(values))  # the caller's dict may change before the worker gets to it
 
     def close(self) -> None:
         if not self._closed:

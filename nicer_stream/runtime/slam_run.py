@@ -11,13 +11,13 @@ import numpy as np
 import torch
 
 from nicer_stream import config as config_mod
-from nicer_stream.errors import UserError
+from nicer_stream.errors import UserError, one_line
 from nicer_stream.runtime.allocator import retain_freed_memory
 from nicer_stream.io.scene_file import save_scene
 from nicer_stream.runtime.frame_priors import make_engine, provider_names
 from nicer_stream.runtime.live_outputs import MESH_RESOLUTION, LiveMapOutputs, coarse_mesh
 from nicer_stream.runtime.frame_reader import ReadAhead
-from nicer_stream.runtime.mapping_thread import MappingThread, split_threads
+from nicer_stream.runtime.mapping_thread import MappingThread, available_cores, split_threads
 from nicer_stream.runtime.sink_worker import SinkWorker
 from nicer_stream.runtime.pacer import Pacer
 from nicer_stream.runtime.prior_stage import PriorStage
@@ -84,11 +84,12 @@ def mapping_on_worker(req: RunRequest) -> bool:
         raise UserError(f"--mapping-worker must be auto, on or off, got {req.mapping_worker!r}")
     if req.sync or req.mapping_worker == "off":
         return False
-    return req.mapping_worker == "on" or req.device.startswith("cuda") or sum(split_threads()) >= 4
+    return req.mapping_worker == "on" or req.device.startswith("cuda") or available_cores() >= 4
 
 
-def _one_line(e: Exception) -> str:
-    error = f"{type(e).__name__}: {e}".splitlines()[0]
+def _report_error(e: Exception) -> str:
+    """The error in one line on the console (its traceback at debug level); returns that line."""
+    error = one_line(e)
     log.debug("the run stopped on an error", exc_info=True)
     print(f"error: {error}; writing what was computed so far", flush=True)
     return error
@@ -230,12 +231,12 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
         except KeyboardInterrupt:  # where the handlers could not be installed (not the main thread)
             stop.request()
         except Exception as e:  # a stage failed: keep what was computed, report it in one line
-            error, failed = _one_line(e), True
+            error, failed = _report_error(e), True
         if slam.model is not None:  # stopped early: the mapping call in hand ends and is applied
             try:
                 slam.wait_for_mapping()
             except Exception as e:
-                error = error or _one_line(e)
+                error = error or _report_error(e)
         torch.set_num_threads(all_threads)
         if isinstance(reader, ReadAhead):
             reader.close()  # a stop or an error left frames unread
@@ -329,7 +330,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
             try:
                 sink.close()
             except Exception as e:  # a sink failed (already logged): the files are written
-                error = error or _one_line(e)
+                error = error or _report_error(e)
     early = early or stop.requested  # a stop during the renders or the mesh
     s = summary()
     print(f"{n} frames in {s.wall_s:.0f} s ({s.seconds_per_frame:.1f} s/frame: tracking "
