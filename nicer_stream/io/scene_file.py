@@ -7,6 +7,7 @@ import torch
 
 from nicer_stream import config as config_mod
 from nicer_stream.config import SlamConfig
+from nicer_stream.errors import UserError
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
@@ -26,7 +27,10 @@ def load_scene(path: Path, device: str = "cpu") -> tuple[SlamConfig, SceneModel,
     cfg = config_mod.override(config_mod.SlamConfig(), data["config"])
     b = data["bound"]
     model = SceneModel(cfg.model, SceneBound(tuple(b["centre"]), b["half_extent"], b["source"])).to(device)
-    model.load_state_dict(data["model"])
+    # Scenes saved before the initial sphere was stored keep the default one (bound centre).
+    missing, unexpected = model.load_state_dict(data["model"], strict=False)
+    if unexpected or set(missing) - {"geometry.sphere_centre", "geometry.sphere_radius"}:
+        raise UserError(f"{path} does not match this version's scene model: re-run the mapping")
     beta = BetaField(cfg.render).to(device)
     beta.load_state_dict(data["beta"])
     return cfg, model, beta

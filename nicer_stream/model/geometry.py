@@ -27,17 +27,27 @@ class GeometrySample:
 
 
 class GeometryField(nn.Module):
-    """s = s_coarse + delta_s; s_coarse starts as the sphere `radius - |x|` (inside positive)."""
+    """s = s_coarse + delta_s; s_coarse starts as the sphere `radius - |x - centre|` (inside
+    positive, normalised units): by default the bound's centre and `cfg.sphere_radius`; the
+    SLAM centres it on the first camera (`set_sphere`), which must start in free space."""
 
     def __init__(self, cfg: ModelConfig) -> None:
         super().__init__()
         self.cfg = cfg
+        # Buffers, so that a saved scene keeps its initialisation.
+        self.register_buffer("sphere_centre", torch.zeros(3))
+        self.register_buffer("sphere_radius", torch.tensor(float(cfg.sphere_radius)))
         pe = encoding_dim(cfg.pe_levels)
         self.coarse_grid = DenseGrids([cfg.coarse_res], cfg.coarse_dim)
         self.coarse_mlp = GeometryMLP(pe + cfg.coarse_dim, cfg.coarse_hidden, 1, 1 + cfg.geo_feature_dim)
         fine_res = geometric_resolutions(cfg.fine_res_min, cfg.fine_res_max, cfg.fine_levels)
         self.fine_grid = DenseGrids(fine_res, cfg.fine_dim)
         self.fine_mlp = GeometryMLP(pe + self.fine_grid.out_dim, cfg.fine_hidden, cfg.fine_layers, 1 + cfg.geo_feature_dim)
+
+    def set_sphere(self, centre: torch.Tensor, radius: float) -> None:
+        """Centre (3,) and radius of the initial sphere, normalised units."""
+        self.sphere_centre.copy_(centre)
+        self.sphere_radius.fill_(radius)
 
     def forward(self, x: torch.Tensor, use_fine: bool = True, with_grad: bool = False) -> GeometrySample:
         """x (N, 3) normalised coordinates."""
@@ -48,9 +58,10 @@ class GeometryField(nn.Module):
         h = torch.cat([pe, gc], dim=-1)
         hj = torch.cat([pe_j, gc_j], dim=-1) if tan else None
         out, out_g = self.coarse_mlp.value_and_grad0(h, hj) if tan else (self.coarse_mlp(h), None)
-        r = x.norm(dim=-1).clamp_min(1e-9)
-        sdf = self.cfg.sphere_radius - r + out[:, 0]
-        grad = (-x / r[:, None] + out_g) if tan else None
+        xc = x - self.sphere_centre
+        r = xc.norm(dim=-1).clamp_min(1e-9)
+        sdf = self.sphere_radius - r + out[:, 0]
+        grad = (-xc / r[:, None] + out_g) if tan else None
         z_coarse = out[:, 1:]
         z_fine = torch.zeros_like(z_coarse)
         if use_fine:

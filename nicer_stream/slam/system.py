@@ -253,6 +253,9 @@ class SlamSystem:
         for f in [mf] + ([second] if second is not None else []):
             self._frontend_pose(f.index, self.poses[f.index], True, True)
         self.model = SceneModel(cfg.model, self.bound).to(self.device)
+        if cfg.model.sphere_at_camera:
+            centre = self.bound.normalise(T0[:3, 3].to(torch.float32).cpu())
+            self.model.geometry.set_sphere(centre.to(self.device), cfg.loss.first_depth_median_m / self.bound.half_extent)
         self.beta = BetaField(cfg.render).to(self.device)
         self.mapper = Mapper(self.model, self.beta, cfg, cfg.seed)
         self.tracker = Tracker(self.model, self.beta, cfg.tracking, cfg.render, cfg.seed)

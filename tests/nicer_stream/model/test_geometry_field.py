@@ -75,3 +75,28 @@ def test_use_fine_false_ignores_fine_grid():
     assert torch.equal(coarse0.grad, coarse1.grad)
     assert torch.equal(coarse1.z_fine, torch.zeros_like(coarse1.z_fine))
     assert (full0.sdf - full1.sdf).abs().max() > 1e-3  # the full SDF does see the fine level
+
+
+def test_sphere_moved_to_the_camera():
+    """The SLAM's start: the sphere centred on the first camera, which is then in free space
+    even where the bound's centre is further from it than the default radius."""
+    torch.manual_seed(0)
+    geo = GeometryField(ModelConfig())
+    camera = torch.tensor([0.6, -0.7, 0.5])  # |camera| = 1.05: inside the solid of the default sphere
+    with torch.no_grad():
+        assert geo(camera[None]).sdf[0] < 0
+        geo.set_sphere(camera, 0.7)
+        x = _points(256)
+        s = geo(x)
+        assert (s.sdf - (0.7 - (x - camera).norm(dim=-1))).abs().max() < 1e-2
+        assert geo(camera[None]).sdf[0] > 0.65
+
+
+def test_grad_equals_autograd_with_a_moved_sphere():
+    geo = _perturbed()
+    geo.set_sphere(torch.tensor([0.3, -0.2, 0.4], dtype=torch.float64), 0.6)
+    x = _points(8, seed=3, dtype=torch.float64)
+    s = geo(x, with_grad=True)
+    xr = x.clone().requires_grad_(True)
+    (g,) = torch.autograd.grad(geo(xr).sdf.sum(), xr)
+    assert torch.allclose(s.grad, g, atol=1e-9), (s.grad - g).abs().max()
