@@ -7,6 +7,7 @@ import torch
 from torch import nn
 
 from nicer_stream.config import ModelConfig
+from nicer_stream.errors import UserError
 from nicer_stream.model.dense_grid import DenseGrids, geometric_resolutions
 from nicer_stream.model.mlp import GeometryMLP
 from nicer_stream.model.positional import encoding_dim, positional_encoding
@@ -26,10 +27,22 @@ class GeometrySample:
     z_fine: torch.Tensor
 
 
+def initial_sphere(mode: str, camera: torch.Tensor, default_radius: float, camera_radius: float) -> tuple[torch.Tensor, float]:
+    """Centre (3,) and radius of the initial sphere, normalised units, for `ModelConfig.sphere_centre`
+    `mode` ('bound', 'camera' or 'auto') and the first camera's normalised position `camera` (3,)."""
+    if mode not in ("bound", "camera", "auto"):
+        raise UserError(f"model.sphere_centre must be bound, camera or auto, got {mode!r}")
+    outside = float(camera.norm()) >= default_radius
+    if mode == "camera" or (mode == "auto" and outside):
+        return camera.clone(), camera_radius
+    return torch.zeros_like(camera), default_radius
+
+
 class GeometryField(nn.Module):
     """s = s_coarse + delta_s; s_coarse starts as the sphere `radius - |x - centre|` (inside
     positive, normalised units): by default the bound's centre and `cfg.sphere_radius`; the
-    SLAM centres it on the first camera (`set_sphere`), which must start in free space."""
+    SLAM may centre it on the first camera (`initial_sphere`, `set_sphere`): the camera must
+    start in free space."""
 
     def __init__(self, cfg: ModelConfig) -> None:
         super().__init__()

@@ -27,6 +27,7 @@ from nicer_stream.model.bound import SceneBound, bound_from_points
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.model.bound_estimate import bound_from_config, bound_from_depth
+from nicer_stream.model.geometry import initial_sphere
 from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpdated
 from nicer_stream.slam.map_jobs import InlineMapping, MapJob, MappingExecutor, MapResult, job_frames, take_snapshot
 from nicer_stream.slam.motion import frontend_disagreement, predict_pose, tracking_failure
@@ -73,6 +74,8 @@ class SlamSystem:
             raise UserError(f"mapping.init must be first_frame or two_view, got {cfg.mapping.init!r}")
         if cfg.tracking.frontend not in ("classical", "none", "auto"):
             raise UserError(f"tracking.frontend must be classical, none or auto, got {cfg.tracking.frontend!r}")
+        if cfg.model.sphere_centre not in ("bound", "camera", "auto"):
+            raise UserError(f"model.sphere_centre must be bound, camera or auto, got {cfg.model.sphere_centre!r}")
         if cfg.frontend.features not in ("sift", "klt"):
             raise UserError(f"frontend.features must be sift or klt, got {cfg.frontend.features!r}")
         if cfg.stereo.scale not in ("fixed", "fit"):
@@ -253,9 +256,10 @@ class SlamSystem:
         for f in [mf] + ([second] if second is not None else []):
             self._frontend_pose(f.index, self.poses[f.index], True, True)
         self.model = SceneModel(cfg.model, self.bound).to(self.device)
-        if cfg.model.sphere_at_camera:
-            centre = self.bound.normalise(T0[:3, 3].to(torch.float32).cpu())
-            self.model.geometry.set_sphere(centre.to(self.device), cfg.loss.first_depth_median_m / self.bound.half_extent)
+        camera = self.bound.normalise(T0[None, :3, 3].to(torch.float32).cpu())[0]
+        centre, radius = initial_sphere(cfg.model.sphere_centre, camera, cfg.model.sphere_radius,
+                                        cfg.loss.first_depth_median_m / self.bound.half_extent)
+        self.model.geometry.set_sphere(centre.to(self.device), radius)
         self.beta = BetaField(cfg.render).to(self.device)
         self.mapper = Mapper(self.model, self.beta, cfg, cfg.seed)
         self.tracker = Tracker(self.model, self.beta, cfg.tracking, cfg.render, cfg.seed)
