@@ -42,7 +42,8 @@ def test_a_fresh_process_renders_the_runs_own_views(run_dir, tmp_path):
             continue
         with np.load(mine) as a, np.load(tmp_path / "views" / f"view_{row:05d}.npz") as b:
             np.testing.assert_allclose(b["rgb"], a["rgb"], atol=1e-5)
-            np.testing.assert_allclose(b["depth"], a["depth"], atol=1e-5)
+            # float32 depths of 1-3 m composited on different thread counts: relative rounding.
+            np.testing.assert_allclose(b["depth"], a["depth"], rtol=2e-5, atol=1e-5)
             assert float(b["timestamp"]) == pytest.approx(t[row])
         compared += 1
     assert compared >= 2
