@@ -7,7 +7,6 @@ import torch
 from torch import nn
 
 from nicer_stream.config import ModelConfig
-from nicer_stream.errors import UserError
 from nicer_stream.model.dense_grid import DenseGrids, geometric_resolutions
 from nicer_stream.model.mlp import GeometryMLP
 from nicer_stream.model.positional import encoding_dim, positional_encoding
@@ -29,9 +28,8 @@ class GeometrySample:
 
 def initial_sphere(mode: str, camera: torch.Tensor, default_radius: float, camera_radius: float) -> tuple[torch.Tensor, float]:
     """Centre (3,) and radius of the initial sphere, normalised units, for `ModelConfig.sphere_centre`
-    `mode` ('bound', 'camera' or 'auto') and the first camera's normalised position `camera` (3,)."""
-    if mode not in ("bound", "camera", "auto"):
-        raise UserError(f"model.sphere_centre must be bound, camera or auto, got {mode!r}")
+    `mode` ('bound', 'camera' or 'auto'; SlamSystem checks it with the other config values) and
+    the first camera's normalised position `camera` (3,)."""
     outside = float(camera.norm()) >= default_radius
     if mode == "camera" or (mode == "auto" and outside):
         return camera.clone(), camera_radius

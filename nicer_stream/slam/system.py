@@ -256,10 +256,9 @@ class SlamSystem:
         for f in [mf] + ([second] if second is not None else []):
             self._frontend_pose(f.index, self.poses[f.index], True, True)
         self.model = SceneModel(cfg.model, self.bound).to(self.device)
-        camera = self.bound.normalise(T0[None, :3, 3].to(torch.float32).cpu())[0]
-        centre, radius = initial_sphere(cfg.model.sphere_centre, camera, cfg.model.sphere_radius,
-                                        cfg.loss.first_depth_median_m / self.bound.half_extent)
-        self.model.geometry.set_sphere(centre.to(self.device), radius)
+        camera = self.bound.normalise(T0[None, :3, 3])[0]
+        self.model.geometry.set_sphere(*initial_sphere(cfg.model.sphere_centre, camera, cfg.model.sphere_radius,
+                                                       cfg.loss.first_depth_median_m / self.bound.half_extent))
         self.beta = BetaField(cfg.render).to(self.device)
         self.mapper = Mapper(self.model, self.beta, cfg, cfg.seed)
         self.tracker = Tracker(self.model, self.beta, cfg.tracking, cfg.render, cfg.seed)
