@@ -15,6 +15,7 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install -q torch==2.13.0
 	$(PY) -m pip install -q -e ".[test]"
 	$(PY) -m nicer_stream.model.grid_kernel
+	$(PY) -m nicer_stream.model.softplus
 	touch $@
 
 demo: setup

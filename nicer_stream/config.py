@@ -212,6 +212,11 @@ class TrackingConfig:
     """'classical': a feature-track + PnP + local-BA frontend (`frontend` settings) seeds each
     frame's pose and checks the photometric result; 'none': the paper's tracking alone; 'auto':
     classical with `--priors stereo` (whose depth is only as good as the poses), else none."""
+    refine: str = "all"
+    """With the frontend on: 'all' refines every frame's pose against the map (the paper's
+    tracking); 'keyframes' refines only the frames that become keyframes (they seed the map and
+    the frontend's bundle adjustment) and keeps the frontend's pose for the others. Frames the
+    frontend has no pose for are refined either way."""
     optimizer: str = "adam"
     """'adam' on the L1 loss (the paper) or 'gauss_newton' (Levenberg-Marquardt with Huber
     weights: a few iterations, each a forward and three backward passes; `iters` is its maximum)."""

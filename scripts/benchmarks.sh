@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The measurements named in the issues (long: run one at a time on a 2-core CPU).
-# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|run-none|run-synth|run10|run10-paper|flow|speedup|iters|frontend|street|jump|async|memory|batch] [OUTROOT]
+# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|run-none|run-synth|run10|run10-paper|flow|ab|speedup|iters|frontend|street|jump|async|memory|batch] [OUTROOT]
 # speedup: the Replica `run` of commit BASE (default c64946b; a git worktree in OUTROOT/base_worktree)
 #   and of this tree (uncommitted edits included) back to back, then scripts/speedup_table.py
 #   (~15 min). EXTRA="..." appends arguments to both runs (e.g. EXTRA="--max-frames 3").
@@ -79,6 +79,21 @@ case "${1:-all}" in
              wt=$(realpath "$OUT")/base_worktree
              [ -e "$wt/.git" ] && PYTHONPATH=$wt .venv/bin/python scripts/iter_bench.py --presets fast --iters 10
              .venv/bin/python scripts/iter_bench.py --presets fast,paper --iters 10 --profile ;;
+  ab)        # BASE's code (default HEAD~1, a worktree in OUTROOT/ab_worktree) and this tree alternated twice:
+             # per-iteration costs at fast sizes, then one render and the mesh of RUN (a finished run's OUT)
+             base=$(git rev-parse --verify "${BASE:-HEAD~1}^{commit}") && mkdir -p "$OUT" && wt=$(realpath "$OUT")/ab_worktree root=$PWD
+             [ -e "$wt/.git" ] || git worktree add -q --detach "$wt" "$base"
+             git -C "$wt" checkout -q --detach "$base"
+             ln -sfn "$(realpath ../shared)" "$(dirname "$wt")/shared"  # the scripts' ../shared/data from the worktree
+             for round in 1 2; do
+               for tree in "$wt" "$PWD"; do
+                 echo "== round $round: $(git -C "$tree" rev-parse --short HEAD)$([ "$tree" = "$PWD" ] && [ -n "$(git status --porcelain)" ] && echo +edits)"
+                 (cd "$tree" && PYTHONPATH="$tree" "$root/.venv/bin/python" scripts/iter_bench.py --presets fast --iters 10 | tail -1)
+                 if [ -n "${RUN:-}" ]; then
+                   (cd "$tree" && PYTHONPATH="$tree" "$root/.venv/bin/python" "$root/scripts/output_bench.py" "$root/$RUN")
+                 fi
+               done
+             done ;;
   speedup)   BASE=${BASE:-c64946b}
              base=$(git rev-parse --verify "$BASE^{commit}")
              mkdir -p "$OUT" && out=$(realpath "$OUT") && wt=$out/base_worktree

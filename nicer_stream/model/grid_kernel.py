@@ -1,47 +1,23 @@
 """The compiled CPU kernel for multi-level grid interpolation (`kernels/grid_interp.cpp`).
 
-Built on first use with torch's C++ extension loader (g++ and ninja; ~25 s once, then
-cached under ~/.cache/torch_extensions). Where it cannot be built, on a GPU, or with
+Built on first use (`cpp_kernel.py`). Where it cannot be built, on a GPU, or with
 NICER_STREAM_KERNELS=0, the grids use their pure-torch reference paths (same values and
 gradients; tests compare both).
 """
 from __future__ import annotations
 
-import logging
-import os
-from pathlib import Path
-
 import torch
 
+from nicer_stream.model.cpp_kernel import CppKernel
 from nicer_stream.model.gather import gradient_target
 
-log = logging.getLogger(__name__)
-_SOURCE = Path(__file__).parent / "kernels" / "grid_interp.cpp"
-_module = None
-_failed = False
-
-
-def _load():
-    global _module, _failed
-    if _module is None and not _failed:
-        try:
-            from torch.utils.cpp_extension import load
-
-            _module = load(name="nicer_stream_grid_interp", sources=[str(_SOURCE)],
-                           extra_cflags=["-O3", "-fopenmp"], extra_ldflags=["-fopenmp"], verbose=False)
-        except Exception as e:  # no compiler, no ninja, ...: the reference path still works
-            _failed = True
-            log.warning("grid kernel not built (%s): using the slower pure-torch path", str(e).splitlines()[0][:200])
-    return _module
+_KERNEL = CppKernel("nicer_stream_grid_interp", "grid_interp.cpp", ["-O3", "-fopenmp"])
+_load = _KERNEL.module
 
 
 def kernel_available(t: torch.Tensor) -> bool:
     """True when `t` (a table or points) can go through the compiled kernel."""
-    if t.device.type != "cpu" or t.dtype not in (torch.float32, torch.float64):
-        return False
-    if os.environ.get("NICER_STREAM_KERNELS", "1") == "0":
-        return False
-    return _load() is not None
+    return _KERNEL.available(t)
 
 
 class GridSpec:

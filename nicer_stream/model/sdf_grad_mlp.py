@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import torch
 
-from nicer_stream.model.softplus import SOFTPLUS_BETA, softplus_beta
+from nicer_stream.model.softplus import SOFTPLUS_BETA, softplus_and_sigmoid
 
 
 class FusedSdfGradMLP(torch.autograd.Function):
@@ -36,8 +36,8 @@ class FusedSdfGradMLP(torch.autograd.Function):
         x = h
         for w, b in zip(weights[:-1], biases[:-1]):
             z = torch.addmm(b, x, w.t())
-            ss.append(torch.sigmoid(z * SOFTPLUS_BETA))
-            x = softplus_beta(z)
+            x, s = softplus_and_sigmoid(z)
+            ss.append(s)
             hs.append(x)
         out = torch.addmm(biases[-1], x, weights[-1].t())
         # Reverse sweep for d out_0 / d h_i: u_{n-1} is the last layer's first row.

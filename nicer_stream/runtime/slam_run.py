@@ -201,7 +201,8 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                 lost = f" LOST ({e.lost})" if e.lost else ""
                 secs = f"{e.seconds:.1f} s tracking" if replay else f"{step_s:.1f} s"
                 done += 1
-                say(f"frame {e.index:5d}  track loss {e.loss:.4f}  {secs}{lost}  {status()}")
+                how = f"track loss {e.loss:.4f}" if math.isfinite(e.loss) else "frontend pose"
+                say(f"frame {e.index:5d}  {how}  {secs}{lost}  {status()}")
                 if sink is not None:
                     with timer.stage("sinks"):
                         sink.log_frame(e.index, e.timestamp, f.rgb, f.intrinsics, e.T_world_cam,

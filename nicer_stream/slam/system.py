@@ -9,6 +9,7 @@ frames that carry any (priors are computed beforehand by runtime.prior_stage).
 from __future__ import annotations
 
 import logging
+import math
 import random
 import time
 from contextlib import contextmanager
@@ -74,6 +75,8 @@ class SlamSystem:
             raise UserError(f"mapping.init must be first_frame or two_view, got {cfg.mapping.init!r}")
         if cfg.tracking.frontend not in ("classical", "none", "auto"):
             raise UserError(f"tracking.frontend must be classical, none or auto, got {cfg.tracking.frontend!r}")
+        if cfg.tracking.refine not in ("all", "keyframes"):
+            raise UserError(f"tracking.refine must be all or keyframes, got {cfg.tracking.refine!r}")
         if cfg.model.sphere_centre not in ("bound", "camera", "auto"):
             raise UserError(f"model.sphere_centre must be bound, camera or auto, got {cfg.model.sphere_centre!r}")
         if cfg.frontend.features not in ("sift", "klt"):
@@ -190,7 +193,7 @@ class SlamSystem:
         self.order.append(i)
         self.timestamps[i] = frame.timestamp
         self._store(mf)
-        is_kf = len(self.order) % self.cfg.mapping.keyframe_every == 1 or self.cfg.mapping.keyframe_every == 1
+        is_kf = self._keyframe_slot(len(self.order))
         # A frame whose pose is not trusted never becomes a keyframe nor starts a mapping call.
         trusted = i not in self.lost_frames
         self._frontend_pose(i, self.poses[i], trusted or i in self._frontend_kept, is_kf)
@@ -207,6 +210,10 @@ class SlamSystem:
                 self._map_due = False
                 events += self._map(i, self.cfg.mapping.iters)
         return events
+
+    def _keyframe_slot(self, n: int) -> bool:
+        """True when the n-th frame in order (1-based) is due to become a keyframe."""
+        return n % self.cfg.mapping.keyframe_every == 1 or self.cfg.mapping.keyframe_every == 1
 
     def finish(self) -> list[Event]:
         """Start from what is held if the sequence ended first; final mapping over the
@@ -329,6 +336,10 @@ class SlamSystem:
             T_pred = torch.as_tensor(front.T_world_cam, dtype=T_pred.dtype, device=T_pred.device)
         elif init == "flow":
             T_pred = self._flow_init(mf, T_pred)
+        if front is not None and self.cfg.tracking.refine == "keyframes" and not self._keyframe_slot(len(self.order) + 1):
+            # Not a keyframe: the frontend's pose stands (its bundle adjustment leans on the refined keyframes).
+            self.poses[mf.index] = T_pred.detach()
+            return FrameTracked(mf.index, mf.timestamp, T_pred.detach().double().cpu().numpy(), math.nan, 0.0)
         res = self.tracker.track(mf, T_pred)
         reason = tracking_failure(res.T_world_cam, T_pred, res.loss, self.recent_losses, self.cfg.tracking)
         if reason is None and front is not None:

@@ -1,7 +1,12 @@
-"""softplus_beta against torch's softplus, in both of its branches."""
+"""softplus_beta against torch's softplus, in both of its branches, and the compiled pass
+(`kernels/softplus.cpp`) against the reference."""
+import pytest
 import torch
 
-from nicer_stream.model.softplus import softplus_beta
+from nicer_stream.model.softplus import (SOFTPLUS_BETA, kernel_available, softplus_and_sigmoid, softplus_beta,
+                                         softplus_beta_reference)
+
+needs_kernel = pytest.mark.skipif(not kernel_available(torch.zeros(1)), reason="softplus kernel could not be built here")
 
 
 def test_softplus_matches_torch_including_large_inputs():
@@ -12,5 +17,35 @@ def test_softplus_matches_torch_including_large_inputs():
 
 def test_softplus_in_place_branch_equals_autograd_branch():
     z = torch.linspace(-1, 1, 301, dtype=torch.float64)
-    ref = softplus_beta(z.clone().requires_grad_()).detach()
-    assert torch.equal(softplus_beta(z.clone()), ref)
+    ref = softplus_beta_reference(z.clone().requires_grad_()).detach()
+    assert torch.equal(softplus_beta_reference(z.clone()), ref)
+
+
+def test_softplus_keeps_its_graph_when_one_is_needed():
+    z = torch.linspace(-0.05, 0.05, 101, dtype=torch.float64, requires_grad=True)
+    softplus_beta(z).sum().backward()
+    assert torch.allclose(z.grad, torch.sigmoid(SOFTPLUS_BETA * z.detach()), atol=1e-12)
+
+
+@needs_kernel
+@pytest.mark.parametrize("dtype,tol", [(torch.float32, 2e-7), (torch.float64, 1e-15)])
+def test_kernel_matches_reference_values_and_sigmoid(dtype, tol):
+    g = torch.Generator().manual_seed(0)
+    # Pre-activations as the MLPs see them (|beta z| mostly below 10), a non-contiguous view,
+    # and the tails where exp(-|a|) is capped.
+    z = (torch.randn(3000, 70, generator=g, dtype=dtype) * 0.05)[:, ::2]
+    z = torch.cat([z.reshape(-1), torch.tensor([-30.0, -0.8, 0.0, 0.8, 30.0], dtype=dtype)])
+    sp, s = softplus_and_sigmoid(z)
+    assert torch.allclose(sp, softplus_beta_reference(z), rtol=0, atol=tol * 10)
+    assert torch.allclose(s, torch.sigmoid(SOFTPLUS_BETA * z), rtol=0, atol=tol * 10)
+    assert torch.equal(softplus_beta(z), sp)  # no graph asked for: the same pass
+
+
+@needs_kernel
+def test_kernel_passes_nan_and_infinity_through():
+    z = torch.tensor([float("nan"), float("inf"), -float("inf"), 1.0])
+    sp, s = softplus_and_sigmoid(z)
+    assert torch.isnan(sp[0]) and torch.isnan(s[0])  # a diverged map stays visible
+    assert sp[1] == float("inf") and s[1] == 1.0
+    assert sp[2] == 0.0 and s[2] < 1e-30
+    assert torch.allclose(sp[3], torch.tensor(1.0))

@@ -95,3 +95,39 @@ def test_the_frontend_seeds_tracking(cfg, monkeypatch):
     for i in placed:
         assert np.allclose(seeds[i].double().numpy(), estimates[i].T_world_cam, atol=1e-5)
     assert slam.frontend_seconds > 0
+
+
+def test_refine_keyframes_tracks_only_keyframes_and_keeps_frontend_poses(cfg, monkeypatch):
+    """`tracking.refine = 'keyframes'`: the photometric tracker runs for keyframe slots (and frames
+    the frontend cannot place); every other frame keeps the frontend's pose, with no loss."""
+    slam = SlamSystem(replace(cfg, tracking=replace(cfg.tracking, refine="keyframes")))
+    tracked, estimates = set(), {}
+    real_track, real_estimate = Tracker.track, type(slam.frontend).estimate
+
+    def spy_track(self, frame, T_init):
+        tracked.add(frame.index)
+        return real_track(self, frame, T_init)
+
+    def spy_estimate(self, index, T_guess):
+        estimates[index] = real_estimate(self, index, T_guess)
+        return estimates[index]
+
+    monkeypatch.setattr(Tracker, "track", spy_track)
+    monkeypatch.setattr(type(slam.frontend), "estimate", spy_estimate)
+    events = [e for f in _frames(12) for e in slam.step(f) if isinstance(e, FrameTracked)]
+    placed = {i for i, e in estimates.items() if e is not None}
+    every = cfg.mapping.keyframe_every
+    slots = {i for n, i in enumerate(slam.order, start=1) if n % every == 1}
+    assert placed - slots, "no frame the frontend placed outside the keyframe slots: nothing checked"
+    for e in events:
+        if e.index in placed and e.index not in slots:
+            assert e.index not in tracked and np.isnan(e.loss)
+            assert np.allclose(e.T_world_cam, estimates[e.index].T_world_cam, atol=1e-6)
+        elif e.index in slots and e.index != slam.order[0]:
+            assert e.index in tracked  # keyframes: refined against the map
+    assert set(slam.keyframes) <= slots
+
+
+def test_refine_rejects_unknown_values(cfg):
+    with pytest.raises(Exception, match="tracking.refine must be all or keyframes"):
+        SlamSystem(replace(cfg, tracking=replace(cfg.tracking, refine="some")))

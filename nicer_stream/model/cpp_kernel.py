@@ -1,0 +1,46 @@
+"""Build-on-first-use C++ CPU kernels (`model/kernels/*.cpp`), each with a pure-torch reference.
+
+torch's C++ extension loader compiles a source once (g++ and ninja; ~25 s) and caches it under
+~/.cache/torch_extensions. Where a kernel cannot be built, on a GPU, for other dtypes, or with
+NICER_STREAM_KERNELS=0, callers take their reference paths (tests compare both)."""
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+import torch
+
+log = logging.getLogger(__name__)
+KERNEL_DIR = Path(__file__).parent / "kernels"
+
+
+class CppKernel:
+    """One source file under `kernels/`, compiled with `cflags` when first asked for."""
+
+    def __init__(self, name: str, source: str, cflags: list[str]) -> None:
+        self.name, self.source, self.cflags = name, KERNEL_DIR / source, cflags
+        self._module = None
+        self._failed = False
+
+    def module(self):
+        """The compiled module, or None when it cannot be built (warned once)."""
+        if self._module is None and not self._failed:
+            try:
+                from torch.utils.cpp_extension import load
+
+                self._module = load(name=self.name, sources=[str(self.source)], extra_cflags=self.cflags,
+                                    extra_ldflags=["-fopenmp"], verbose=False)
+            except Exception as e:  # no compiler, no ninja, ...: the reference path still works
+                self._failed = True
+                log.warning("%s not built (%s): using the slower pure-torch path", self.source.name,
+                            str(e).splitlines()[0][:200])
+        return self._module
+
+    def available(self, t: torch.Tensor) -> bool:
+        """True when `t` can go through the compiled kernel (CPU, float32/float64, enabled, built)."""
+        if t.device.type != "cpu" or t.dtype not in (torch.float32, torch.float64):
+            return False
+        if os.environ.get("NICER_STREAM_KERNELS", "1") == "0":
+            return False
+        return self.module() is not None
