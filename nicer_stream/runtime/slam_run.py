@@ -193,6 +193,9 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                     live(e, intr)
             if isinstance(e, FrameTracked):
                 f = waiting.pop(e.index, frame)
+                if f is None:  # a later pose of a frame already reported (refined before the closing call)
+                    say(f"frame {e.index:5d}  refined against the map: track loss {e.loss:.4f}")
+                    continue
                 if e.index in read_at:
                     t_read, steady = read_at.pop(e.index)
                     latency.append((time.perf_counter() - t_read, steady))

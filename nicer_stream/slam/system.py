@@ -119,6 +119,7 @@ class SlamSystem:
         self.frontend_seconds = 0.0
         self._fview = None  # (frame index, frontend two-view result) of the start without priors
         self._frontend_kept: set[int] = set()  # lost frames whose pose is the frontend's
+        self._unrefined: set[int] = set()  # frames whose pose is the frontend's alone (`tracking.refine`)
         self._halved: set[int] = set()  # keyframes kept at half resolution (`full_res_keyframes`)
 
     # -- per frame -------------------------------------------------------------------
@@ -201,7 +202,7 @@ class SlamSystem:
             self.keyframes.append(i)
             events.append(KeyframeAdded(i))
             self._cap_keyframes()
-        due = len(self.order) > 1 and (len(self.order) - 1) % self.cfg.mapping.every == 0
+        due = self._mapping_slot(len(self.order))
         if trusted and (due or self._map_due):
             events += self._collect()  # a call that has just finished frees the worker
             if self.mapping.busy():  # the worker is still on the last call: map at the next frame
@@ -215,6 +216,27 @@ class SlamSystem:
         """True when the n-th frame in order (1-based) is due to become a keyframe."""
         return n % self.cfg.mapping.keyframe_every == 1 or self.cfg.mapping.keyframe_every == 1
 
+    def _mapping_slot(self, n: int) -> bool:
+        """True when the n-th frame in order (1-based) is due to start a mapping call."""
+        return n > 1 and (n - 1) % self.cfg.mapping.every == 0
+
+    def _refine_unrefined_last(self) -> list[Event]:
+        """`refine = 'keyframes'`: the closing call maps the latest frame, so its frontend pose
+        is refined against the map first (a second FrameTracked event carries the new pose)."""
+        last = self.order[-1]
+        if last not in self._unrefined or last not in self.frames:
+            return []
+        self._unrefined.discard(last)
+        T_front = self.poses[last]
+        res = self.tracker.track(self.frames[last], T_front)
+        reason = tracking_failure(res.T_world_cam, T_front, res.loss, self.recent_losses, self.cfg.tracking)
+        if reason is None:
+            self.poses[last] = res.T_world_cam.detach()
+        else:
+            log.info("frame %d: refinement before the closing mapping rejected (%s): frontend pose kept", last, reason)
+        return [FrameTracked(last, self.timestamps[last], self.poses[last].double().cpu().numpy(), res.loss,
+                             res.seconds, None)]
+
     def finish(self) -> list[Event]:
         """Start from what is held if the sequence ended first; final mapping over the
         latest frame's window: `final_iters` with the poses fixed when set, else `iters` if it
@@ -224,7 +246,7 @@ class SlamSystem:
             return events + self.finish()
         if self.model is None:
             return []
-        events = self.wait_for_mapping()
+        events = self.wait_for_mapping() + self._refine_unrefined_last()
         if self.cfg.mapping.final_iters is not None:
             events += self._map(self.order[-1], self.cfg.mapping.final_iters, bundle_adjust=False, closing=True)
         elif (len(self.order) - 1) % self.cfg.mapping.every != 0 or self._map_due:
@@ -336,9 +358,13 @@ class SlamSystem:
             T_pred = torch.as_tensor(front.T_world_cam, dtype=T_pred.dtype, device=T_pred.device)
         elif init == "flow":
             T_pred = self._flow_init(mf, T_pred)
-        if front is not None and self.cfg.tracking.refine == "keyframes" and not self._keyframe_slot(len(self.order) + 1):
-            # Not a keyframe: the frontend's pose stands (its bundle adjustment leans on the refined keyframes).
+        n = len(self.order) + 1
+        if (front is not None and self.cfg.tracking.refine == "keyframes" and not self._keyframe_slot(n)
+                and not self._mapping_slot(n)):
+            # Neither a keyframe nor mapped from: the frontend's pose stands (its bundle adjustment
+            # leans on the refined keyframes).
             self.poses[mf.index] = T_pred.detach()
+            self._unrefined.add(mf.index)
             return FrameTracked(mf.index, mf.timestamp, T_pred.detach().double().cpu().numpy(), math.nan, 0.0)
         res = self.tracker.track(mf, T_pred)
         reason = tracking_failure(res.T_world_cam, T_pred, res.loss, self.recent_losses, self.cfg.tracking)

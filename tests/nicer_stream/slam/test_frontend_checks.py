@@ -131,3 +131,29 @@ def test_refine_keyframes_tracks_only_keyframes_and_keeps_frontend_poses(cfg, mo
 def test_refine_rejects_unknown_values(cfg):
     with pytest.raises(Exception, match="tracking.refine must be all or keyframes"):
         SlamSystem(replace(cfg, tracking=replace(cfg.tracking, refine="some")))
+
+
+def test_refine_keyframes_refines_the_last_frame_before_the_closing_call(cfg, monkeypatch):
+    """The closing call maps the latest frame: with `refine = 'keyframes'` an unrefined latest
+    frame is tracked against the map first, and its new pose is the trajectory's."""
+    c = replace(cfg, tracking=replace(cfg.tracking, refine="keyframes"),
+                mapping=replace(cfg.mapping, final_iters=2))
+    slam = SlamSystem(c)
+    for f in _frames(8):
+        slam.step(f)
+    last = slam.order[-1]
+    assert last in slam._unrefined, "the latest frame was refined online: nothing checked"
+    before = slam.poses[last].clone()
+    tracked = []
+    real = Tracker.track
+
+    def spy(self, frame, T_init):
+        tracked.append(frame.index)
+        return real(self, frame, T_init)
+
+    monkeypatch.setattr(Tracker, "track", spy)
+    events = slam.finish()
+    again = [e for e in events if isinstance(e, FrameTracked)]
+    assert tracked == [last] and [e.index for e in again] == [last]
+    assert np.allclose(again[0].T_world_cam, slam.trajectory()[1][-1])
+    assert not torch.equal(slam.poses[last], before)
