@@ -3,7 +3,8 @@
 # Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|run-none|run-synth|run10|run10-paper|flow|ab|speedup|iters|frontend|street|jump|async|memory|batch] [OUTROOT]
 # speedup: the Replica `run` of commit BASE (default c64946b; a git worktree in OUTROOT/base_worktree)
 #   and of this tree (uncommitted edits included) back to back, then scripts/speedup_table.py
-#   (~15 min). EXTRA="..." appends arguments to both runs (e.g. EXTRA="--max-frames 3").
+#   (~15 min). EXTRA="..." appends arguments to both runs (e.g. EXTRA="--max-frames 3"), NEW_EXTRA="..."
+#   to this tree's alone (e.g. NEW_EXTRA="--config candidate.toml": settings the baseline does not know).
 # Tables: .venv/bin/python scripts/eval_table.py OUT... [--reference OUTROOT/map_oracle]
 # run10-paper needs hours here: Ctrl-C writes what was computed (trajectory so far, mesh, eval).
 set -euo pipefail
@@ -25,7 +26,7 @@ sys.exit(f"imported from outside {sys.argv[1]}: {bad}" if bad else 0)' "$tree")
   echo "== $(git -C "$tree" rev-parse --short HEAD) ($tree) -> $dir"
   # shellcheck disable=SC2086  # EXTRA is split into arguments on purpose
   (cd "$tree" && PYTHONPATH="$tree" /usr/bin/time -f "%e %M" -o "$dir/time.txt" $py -m nicer_stream.cli.main run \
-     --source "replica:$root/../shared/data/replica_room0_20f" --priors "$3" --preset fast --out "$dir" ${EXTRA:-})
+     --source "replica:$root/../shared/data/replica_room0_20f" --priors "$3" --preset fast --out "$dir" ${EXTRA:-} ${4:-})
   echo "wall $(cut -d' ' -f1 "$dir/time.txt") s, peak RSS $(cut -d' ' -f2 "$dir/time.txt") KB"
 }
 case "${1:-all}" in
@@ -105,7 +106,7 @@ case "${1:-all}" in
              # The baseline's `oracle` is what this tree calls `oracle:clean` (near-GT priors, GT flow).
              speedup_run "$wt" "$out/speedup_base" oracle
              new=$(git rev-parse --short HEAD)$([ -z "$(git status --porcelain)" ] || echo +edits)
-             speedup_run "$PWD" "$out/speedup_new" oracle:clean
+             speedup_run "$PWD" "$out/speedup_new" oracle:clean "${NEW_EXTRA:-}"
              .venv/bin/python scripts/speedup_table.py "$out/speedup_base" "$out/speedup_new" \
                --labels "$(git rev-parse --short "$base")" "$new" ;;
   *) echo "usage: [BASE=commit] [EXTRA=args] $0 map|map-none|map-paper|map-synth|run|run-seeds|run-none|run10|run10-paper|run-synth|flow|speedup|iters|memory [OUTROOT]"; exit 2 ;;
