@@ -120,6 +120,7 @@ class SlamSystem:
         self._fview = None  # (frame index, frontend two-view result) of the start without priors
         self._frontend_kept: set[int] = set()  # lost frames whose pose is the frontend's
         self._unrefined: set[int] = set()  # frames whose pose is the frontend's alone (`tracking.refine`)
+        self._keyframe_owed = False  # a keyframe slot's frame failed its check (`tracking.refine`)
         self._halved: set[int] = set()  # keyframes kept at half resolution (`full_res_keyframes`)
 
     # -- per frame -------------------------------------------------------------------
@@ -194,9 +195,12 @@ class SlamSystem:
         self.order.append(i)
         self.timestamps[i] = frame.timestamp
         self._store(mf)
-        is_kf = self._keyframe_slot(len(self.order))
+        is_kf = self._keyframe_slot(len(self.order)) or self._keyframe_owed
         # A frame whose pose is not trusted never becomes a keyframe nor starts a mapping call.
         trusted = i not in self.lost_frames
+        # With keyframe-only refinement a failed slot passes to the next frame, which is then
+        # refined: otherwise the map would go `keyframe_every` more frames without a keyframe.
+        self._keyframe_owed = is_kf and not trusted and self.cfg.tracking.refine == "keyframes"
         self._frontend_pose(i, self.poses[i], trusted or i in self._frontend_kept, is_kf)
         if is_kf and trusted and i not in self.keyframes:
             self.keyframes.append(i)
@@ -360,7 +364,7 @@ class SlamSystem:
             T_pred = self._flow_init(mf, T_pred)
         n = len(self.order) + 1
         if (front is not None and self.cfg.tracking.refine == "keyframes" and not self._keyframe_slot(n)
-                and not self._mapping_slot(n)):
+                and not self._mapping_slot(n) and not self._keyframe_owed):
             # Neither a keyframe nor mapped from: the frontend's pose stands (its bundle adjustment
             # leans on the refined keyframes).
             self.poses[mf.index] = T_pred.detach()
