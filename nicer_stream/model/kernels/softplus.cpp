@@ -5,6 +5,7 @@
 // sigmoid = 1 / (1 + e) for a >= 0, else e / (1 + e). Built with -ffast-math so that exp and log
 // vectorise (glibc's libmvec); NaN inputs are caught on their bits and passed through.
 #include <torch/extension.h>
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -14,27 +15,42 @@
 static inline bool is_nan(float x) { uint32_t b; std::memcpy(&b, &x, 4); return (b & 0x7fffffffu) > 0x7f800000u; }
 static inline bool is_nan(double x) { uint64_t b; std::memcpy(&b, &x, 8); return (b & 0x7fffffffffffffffull) > 0x7ff0000000000000ull; }
 
+// Every element goes through the same 16-wide vector code (the tail padded): a scalar
+// epilogue or an alignment peel would give some elements libm's scalar exp/log instead, whose
+// last bit differs, so a re-render in another process could differ from the first.
+constexpr int64_t kBlock = 16;
+
+template <typename T>
+static inline void block(const T* zb, T* spb, T* sgb, T beta, T inv) {
+#pragma omp simd
+  for (int64_t i = 0; i < kBlock; ++i) {
+    T a = beta * zb[i];
+    const bool nan = is_nan(zb[i]);
+    T m = std::fabs(a);
+    m = m < T(80) ? m : T(80);
+    T e = std::exp(-m);
+    T r = a > T(0) ? a : T(0);
+    T v = (r + std::log(T(1) + e)) * inv;
+    spb[i] = nan ? zb[i] : v;
+    T d = T(1) / (T(1) + e);
+    T w = a >= T(0) ? d : e * d;
+    sgb[i] = nan ? zb[i] : w;
+  }
+}
+
 template <typename T>
 static void run(const T* z, T* sp, T* sg, int64_t n, T beta) {
   const T inv = T(1) / beta;
 #pragma omp parallel for schedule(static)
   for (int64_t c = 0; c < n; c += 4096) {
     const int64_t end = std::min(n, c + 4096);
-#pragma omp simd
-    for (int64_t i = c; i < end; ++i) {
-      T a = beta * z[i];
-      const bool nan = is_nan(z[i]);
-      T m = std::fabs(a);
-      m = m < T(80) ? m : T(80);
-      T e = std::exp(-m);
-      T r = a > T(0) ? a : T(0);
-      T v = (r + std::log(T(1) + e)) * inv;
-      sp[i] = nan ? z[i] : v;
-      if (sg) {
-        T d = T(1) / (T(1) + e);
-        T w = a >= T(0) ? d : e * d;
-        sg[i] = nan ? z[i] : w;
-      }
+    alignas(64) T zb[kBlock], spb[kBlock], sgb[kBlock];
+    for (int64_t b = c; b < end; b += kBlock) {
+      const int64_t k = std::min(kBlock, end - b);
+      for (int64_t i = 0; i < kBlock; ++i) zb[i] = i < k ? z[b + i] : T(0);
+      block(zb, spb, sgb, beta, inv);
+      std::memcpy(sp + b, spb, k * sizeof(T));
+      if (sg) std::memcpy(sg + b, sgb, k * sizeof(T));
     }
   }
 }

