@@ -15,13 +15,13 @@
 static inline bool is_nan(float x) { uint32_t b; std::memcpy(&b, &x, 4); return (b & 0x7fffffffu) > 0x7f800000u; }
 static inline bool is_nan(double x) { uint64_t b; std::memcpy(&b, &x, 8); return (b & 0x7fffffffffffffffull) > 0x7ff0000000000000ull; }
 
-// Every element goes through the same 16-wide vector code (the tail padded): a scalar
-// epilogue or an alignment peel would give some elements libm's scalar exp/log instead, whose
-// last bit differs, so a re-render in another process could differ from the first.
+// Every element goes through the same 16-wide vector code (whole blocks in place, the tail
+// padded in a local block): a scalar epilogue or an alignment peel would give some elements
+// libm's scalar exp/log instead, whose last bit differs, so a value would depend on its position.
 constexpr int64_t kBlock = 16;
 
 template <typename T>
-static inline void block(const T* zb, T* spb, T* sgb, T beta, T inv) {
+static inline void block(const T* __restrict zb, T* __restrict spb, T* __restrict sgb, T beta, T inv) {
 #pragma omp simd
   for (int64_t i = 0; i < kBlock; ++i) {
     T a = beta * zb[i];
@@ -45,8 +45,12 @@ static void run(const T* z, T* sp, T* sg, int64_t n, T beta) {
   for (int64_t c = 0; c < n; c += 4096) {
     const int64_t end = std::min(n, c + 4096);
     alignas(64) T zb[kBlock], spb[kBlock], sgb[kBlock];
-    for (int64_t b = c; b < end; b += kBlock) {
-      const int64_t k = std::min(kBlock, end - b);
+    int64_t b = c;
+    for (; b + kBlock <= end; b += kBlock) {  // whole blocks straight from and to the tensors
+      block(z + b, sp + b, sg ? sg + b : sgb, beta, inv);
+    }
+    if (b < end) {  // the tail, padded, through the same code
+      const int64_t k = end - b;
       for (int64_t i = 0; i < kBlock; ++i) zb[i] = i < k ? z[b + i] : T(0);
       block(zb, spb, sgb, beta, inv);
       std::memcpy(sp + b, spb, k * sizeof(T));
