@@ -281,6 +281,11 @@ class FrontendConfig:
     """See `max_disagreement_depth_frac`."""
     max_disagreement_deg: float = 2.0
     """Rotation bound of the same check, degrees."""
+    follow_map: bool = False
+    """True: every frontend pose is moved by the latest correction (map pose of the last frame
+    refined against the map, times the inverse of its frontend pose), so a frame that keeps the
+    frontend's pose sits relative to that refined frame (as a non-keyframe sits on its reference
+    keyframe in ORB-SLAM) and the frontend's scale error no longer accumulates along the path."""
     adopt_refined: bool = False
     """True: a frame whose pose was refined against the map (and passed the checks) enters the
     frontend with that pose, so its landmarks and PnP poses take the map's scale; False: the

@@ -121,6 +121,7 @@ class SlamSystem:
         self._frontend_kept: set[int] = set()  # lost frames whose pose is the frontend's
         self._unrefined: set[int] = set()  # frames whose pose is the frontend's alone (`tracking.refine`)
         self._keyframe_owed = False  # a keyframe slot's frame failed its check (`tracking.refine`)
+        self._front_to_map: torch.Tensor | None = None  # `frontend.follow_map`: (4, 4) correction
         self._halved: set[int] = set()  # keyframes kept at half resolution (`full_res_keyframes`)
 
     # -- per frame -------------------------------------------------------------------
@@ -359,9 +360,11 @@ class SlamSystem:
         history = [self.poses[i] for i in self.order[-2:]]
         init = self.cfg.tracking.init
         T_pred = predict_pose(history, init)
-        front = self._frontend_estimate(mf.index, T_pred)
+        C = self._front_to_map
+        front = self._frontend_estimate(mf.index, T_pred if C is None else torch.linalg.inv(C) @ T_pred)
         if front is not None:  # the frontend's PnP pose seeds the photometric tracker
-            T_pred = torch.as_tensor(front.T_world_cam, dtype=T_pred.dtype, device=T_pred.device)
+            T_front = torch.as_tensor(front.T_world_cam, dtype=T_pred.dtype, device=T_pred.device)
+            T_pred = T_front if C is None else C @ T_front
         elif init == "flow":
             T_pred = self._flow_init(mf, T_pred)
         n = len(self.order) + 1
@@ -388,6 +391,8 @@ class SlamSystem:
                         "frontend's" if front is not None else "motion model's")
         else:
             self.recent_losses = (self.recent_losses + [res.loss])[-10:]
+            if front is not None and self.cfg.frontend.follow_map:
+                self._front_to_map = (T @ torch.linalg.inv(T_front)).detach()
         self.poses[mf.index] = T.detach()
         return FrameTracked(mf.index, mf.timestamp, T.detach().double().cpu().numpy(), res.loss, res.seconds, reason)
 
