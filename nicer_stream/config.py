@@ -287,11 +287,6 @@ class FrontendConfig:
     """See `max_disagreement_depth_frac`."""
     max_disagreement_deg: float = 2.0
     """Rotation bound of the same check, degrees."""
-    adopt_refined: bool = False
-    """True: a frame whose pose was refined against the map (and passed the checks) enters the
-    frontend with that pose, so its landmarks and PnP poses take the map's scale; False: the
-    frontend keeps its own PnP pose for every frame it placed (its scale is then the start's,
-    carried by its landmarks, and can drift from the map's)."""
 
 
 @dataclass(frozen=True)

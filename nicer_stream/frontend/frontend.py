@@ -111,16 +111,12 @@ class ClassicalFrontend:
         return T1, X * s, int(n_in)
 
     # -- poses the SLAM decided --------------------------------------------------------
-    def set_pose(self, index: int, T_world_cam: np.ndarray, trusted: bool = True, keyframe: bool = False,
-                 adopt: bool = False) -> None:
+    def set_pose(self, index: int, T_world_cam: np.ndarray, trusted: bool = True, keyframe: bool = False) -> None:
         """Record the SLAM's pose of `index`; a trusted one triangulates new landmarks against
-        the oldest posed frame that saw each track, and a keyframe runs the local BA. The
-        frontend's own PnP pose is kept when it has one, unless `adopt` (the SLAM's pose, e.g.
-        refined against the map, replaces it)."""
+        the oldest posed frame that saw each track, and a keyframe runs the local BA."""
         if index not in self.obs or not trusted:
             return
-        own = self.own.pop(index, None)
-        self.poses[index] = np.asarray(T_world_cam, np.float64) if adopt or own is None else own
+        self.poses[index] = self.own.pop(index, np.asarray(T_world_cam, np.float64))
         self._triangulate(index)
         if keyframe and index not in self.keyframes:
             self.keyframes = sorted([k for k in self.keyframes if k in self.poses] + [index])

@@ -205,9 +205,7 @@ class SlamSystem:
         # With keyframe-only refinement a failed slot passes to the next frame, which is then
         # refined: otherwise the map would go `keyframe_every` more frames without a keyframe.
         self._keyframe_owed = is_kf and not trusted and self.cfg.tracking.refine == "keyframes"
-        # `frontend.adopt_refined`: a pose refined against the map carries the map's scale into the frontend.
-        adopt = self.cfg.frontend.adopt_refined and i not in self._frontend_kept and i not in self._unrefined
-        self._frontend_pose(i, self.poses[i], trusted or i in self._frontend_kept, is_kf, adopt)
+        self._frontend_pose(i, self.poses[i], trusted or i in self._frontend_kept, is_kf)
         if self.cfg.tracking.follow_keyframes and self.keyframes and not (is_kf and trusted):
             self._dependents.setdefault(self.keyframes[-1], []).append(i)
         if is_kf and trusted and i not in self.keyframes:
@@ -424,10 +422,10 @@ class SlamSystem:
         with self._frontend_timer():
             return self.frontend.estimate(index, T_guess.double().cpu().numpy())
 
-    def _frontend_pose(self, index: int, T: torch.Tensor, trusted: bool, keyframe: bool, adopt: bool = False) -> None:
+    def _frontend_pose(self, index: int, T: torch.Tensor, trusted: bool, keyframe: bool) -> None:
         if self.frontend is not None:
             with self._frontend_timer():
-                self.frontend.set_pose(index, T.double().cpu().numpy(), trusted, keyframe, adopt)
+                self.frontend.set_pose(index, T.double().cpu().numpy(), trusted, keyframe)
 
     def _flow_init(self, mf: MapFrame, T_prev: torch.Tensor) -> torch.Tensor:
         """PnP pose from the stored frames' flows to `mf` (else `T_prev`)."""

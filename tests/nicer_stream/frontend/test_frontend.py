@@ -63,21 +63,3 @@ def test_untrusted_pose_is_not_triangulated_from():
     lo, hi = src[0].gt_pose[:3, 3] - 10, src[0].gt_pose[:3, 3] + 10
     assert ((X > lo) & (X < hi)).all()
 
-
-@pytest.mark.parametrize("adopt", [False, True])
-def test_set_pose_keeps_its_own_pose_unless_told_to_adopt(adopt):
-    """A frame the frontend placed by PnP is recorded with that pose, unless `adopt` (a pose
-    refined against the map) replaces it: the map's scale then reaches the landmarks."""
-    src = list(open_source("synthetic:room?frames=120", SourceOptions(max_frames=9)))
-    fe = ClassicalFrontend(FrontendConfig())
-    for f in src:
-        fe.observe(f.index, f.rgb, f.intrinsics)
-    fe.set_pose(0, src[0].gt_pose, keyframe=True)
-    fe.set_pose(5, src[5].gt_pose, keyframe=True)
-    est = fe.estimate(8, src[5].gt_pose)
-    assert est is not None
-    given = src[8].gt_pose.copy()
-    given[:3, 3] *= 1.05  # the map's scale differs from the frontend's
-    fe.set_pose(8, given, adopt=adopt)
-    assert np.allclose(fe.poses[8], given if adopt else est.T_world_cam)
-    assert 8 not in fe.own

@@ -197,34 +197,6 @@ def test_refine_keyframes_passes_a_failed_keyframe_slot_to_the_next_frame(cfg, m
     assert bad + 2 not in tracked or (bad + 3) % every == 1  # then back to the usual slots
 
 
-def test_adopt_refined_passes_refined_poses_to_the_frontend(cfg, monkeypatch):
-    """`frontend.adopt_refined`: frames refined against the map (and not lost) are adopted by the
-    frontend with the SLAM's pose; frames that kept the frontend's pose are not."""
-    c = _refine_keyframes_without_checks(cfg)
-    slam = SlamSystem(replace(c, frontend=replace(c.frontend, adopt_refined=True)))
-    calls, tracked = {}, set()
-    real_set, real_track = type(slam.frontend).set_pose, Tracker.track
-
-    def spy_set(self, index, T, trusted=True, keyframe=False, adopt=False):
-        calls[index] = adopt
-        return real_set(self, index, T, trusted, keyframe, adopt)
-
-    def spy_track(self, frame, T_init):
-        tracked.add(frame.index)
-        return real_track(self, frame, T_init)
-
-    monkeypatch.setattr(type(slam.frontend), "set_pose", spy_set)
-    monkeypatch.setattr(Tracker, "track", spy_track)
-    for f in _frames(12):
-        slam.step(f)
-    refined = {i for i in tracked if i not in slam.lost_frames}
-    assert refined and slam._unrefined, "nothing refined or nothing kept: nothing checked"
-    for i in slam._unrefined:
-        assert calls[i] is False
-    for i in refined - slam._unrefined:
-        assert calls[i] is True
-
-
 def _follow(cfg, ba: bool = True):
     c = _refine_keyframes_without_checks(cfg)
     c = replace(c, tracking=replace(c.tracking, follow_keyframes=True))
