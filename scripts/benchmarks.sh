@@ -24,6 +24,12 @@ bad = [m.__file__ for m in (nicer_stream, sources, sinks) if not os.path.realpat
 sys.exit(f"imported from outside {sys.argv[1]}: {bad}" if bad else 0)' "$tree")
   rm -rf "$dir" && mkdir -p "$dir"
   echo "== $(git -C "$tree" rev-parse --short HEAD) ($tree) -> $dir"
+  # Compiled kernels: one cache per tree (torch rebuilds an extension whose source path changed,
+  # so alternating trees on one cache would time a build), built before the clock starts.
+  export TORCH_EXTENSIONS_DIR="$root/runs/torch_ext/$(echo "$tree" | md5sum | cut -c1-8)"
+  for m in grid_kernel softplus; do
+    if [ -f "$tree/nicer_stream/model/$m.py" ]; then (cd "$tree" && PYTHONPATH="$tree" $py -m "nicer_stream.model.$m" >/dev/null); fi
+  done
   # shellcheck disable=SC2086  # EXTRA is split into arguments on purpose
   (cd "$tree" && PYTHONPATH="$tree" /usr/bin/time -f "%e %M" -o "$dir/time.txt" $py -m nicer_stream.cli.main run \
      --source "replica:$root/../shared/data/replica_room0_20f" --priors "$3" --preset fast --out "$dir" ${EXTRA:-} ${4:-})
@@ -89,6 +95,7 @@ case "${1:-all}" in
              for round in 1 2; do
                for tree in "$wt" "$PWD"; do
                  echo "== round $round: $(git -C "$tree" rev-parse --short HEAD)$([ "$tree" = "$PWD" ] && [ -n "$(git status --porcelain)" ] && echo +edits)"
+                 export TORCH_EXTENSIONS_DIR="$root/runs/torch_ext/$(echo "$tree" | md5sum | cut -c1-8)"  # as in speedup_run
                  (cd "$tree" && PYTHONPATH="$tree" "$root/.venv/bin/python" scripts/iter_bench.py --presets fast --iters 10 | tail -1)
                  if [ -n "${RUN:-}" ]; then
                    (cd "$tree" && PYTHONPATH="$tree" "$root/.venv/bin/python" "$root/scripts/output_bench.py" "$root/$RUN")
