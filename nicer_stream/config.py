@@ -217,12 +217,6 @@ class TrackingConfig:
     tracking); 'keyframes' refines only the frames that become keyframes (they seed the map and
     the frontend's bundle adjustment) and keeps the frontend's pose for the others. Frames the
     frontend has no pose for are refined either way."""
-    follow_keyframes: bool = False
-    """True: a frame that is not a keyframe keeps its pose relative to the latest keyframe before
-    it (its reference, as in ORB-SLAM): when the mapping's bundle adjustment moves that keyframe,
-    the frame moves with it; and with the frontend on, its poses are moved by the correction
-    of the latest frame refined against the map (map pose times the inverse of its frontend
-    pose), so the frontend's own drift and scale do not accumulate along the trajectory."""
     optimizer: str = "adam"
     """'adam' on the L1 loss (the paper) or 'gauss_newton' (Levenberg-Marquardt with Huber
     weights: a few iterations, each a forward and three backward passes; `iters` is its maximum)."""

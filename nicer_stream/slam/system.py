@@ -121,10 +121,6 @@ class SlamSystem:
         self._frontend_kept: set[int] = set()  # lost frames whose pose is the frontend's
         self._unrefined: set[int] = set()  # frames whose pose is the frontend's alone (`tracking.refine`)
         self._keyframe_owed = False  # a keyframe slot's frame failed its check (`tracking.refine`)
-        # `tracking.follow_keyframes`: the latest refined frame and its frontend pose (k, F_k), and
-        # each keyframe's dependents (the frames that follow it when the mapping's BA moves it).
-        self._front_anchor: tuple[int, torch.Tensor] | None = None
-        self._dependents: dict[int, list[int]] = {}
         self._halved: set[int] = set()  # keyframes kept at half resolution (`full_res_keyframes`)
 
     # -- per frame -------------------------------------------------------------------
@@ -206,8 +202,6 @@ class SlamSystem:
         # refined: otherwise the map would go `keyframe_every` more frames without a keyframe.
         self._keyframe_owed = is_kf and not trusted and self.cfg.tracking.refine == "keyframes"
         self._frontend_pose(i, self.poses[i], trusted or i in self._frontend_kept, is_kf)
-        if self.cfg.tracking.follow_keyframes and self.keyframes and not (is_kf and trusted):
-            self._dependents.setdefault(self.keyframes[-1], []).append(i)
         if is_kf and trusted and i not in self.keyframes:
             self.keyframes.append(i)
             events.append(KeyframeAdded(i))
@@ -363,11 +357,9 @@ class SlamSystem:
         history = [self.poses[i] for i in self.order[-2:]]
         init = self.cfg.tracking.init
         T_pred = predict_pose(history, init)
-        C = self._front_to_map()
-        front = self._frontend_estimate(mf.index, T_pred if C is None else torch.linalg.inv(C) @ T_pred)
+        front = self._frontend_estimate(mf.index, T_pred)
         if front is not None:  # the frontend's PnP pose seeds the photometric tracker
-            T_front = torch.as_tensor(front.T_world_cam, dtype=T_pred.dtype, device=T_pred.device)
-            T_pred = T_front if C is None else C @ T_front
+            T_pred = torch.as_tensor(front.T_world_cam, dtype=T_pred.dtype, device=T_pred.device)
         elif init == "flow":
             T_pred = self._flow_init(mf, T_pred)
         n = len(self.order) + 1
@@ -394,20 +386,10 @@ class SlamSystem:
                         "frontend's" if front is not None else "motion model's")
         else:
             self.recent_losses = (self.recent_losses + [res.loss])[-10:]
-            if front is not None and self.cfg.tracking.follow_keyframes:
-                self._front_anchor = (mf.index, T_front)
         self.poses[mf.index] = T.detach()
         return FrameTracked(mf.index, mf.timestamp, T.detach().double().cpu().numpy(), res.loss, res.seconds, reason)
 
     # -- the classical frontend (no-ops without one) ------------------------------------
-    def _front_to_map(self) -> torch.Tensor | None:
-        """`tracking.follow_keyframes`: the (4, 4) correction T_k F_k^-1 from the frontend's world to
-        the map's, with T_k the latest refined frame's pose as it is now (after any BA)."""
-        if self._front_anchor is None:
-            return None
-        k, F_k = self._front_anchor
-        return self.poses[k] @ torch.linalg.inv(F_k)
-
     @contextmanager
     def _frontend_timer(self):
         t0 = time.perf_counter()
@@ -495,11 +477,7 @@ class SlamSystem:
         self.mapping_wait_s += time.perf_counter() - t0
         for r in results:
             for k in r.job.ba:
-                moved = r.job.poses[k] @ torch.linalg.inv(self.poses[k])
                 self.poses[k] = r.job.poses[k]
-                for i in self._dependents.get(k, []):  # `tracking.follow_keyframes`
-                    if i not in r.job.ba:
-                        self.poses[i] = moved @ self.poses[i]
             self.mapped_iters += r.stats.iters
             self.mapped_frames.update(r.job.window)
             self.map_version += 1

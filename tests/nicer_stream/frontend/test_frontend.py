@@ -62,4 +62,3 @@ def test_untrusted_pose_is_not_triangulated_from():
     # landmarks lie in the room (GT geometry): inside its bounds
     lo, hi = src[0].gt_pose[:3, 3] - 10, src[0].gt_pose[:3, 3] + 10
     assert ((X > lo) & (X < hi)).all()
-

@@ -1,7 +1,6 @@
 """The classical frontend inside SlamSystem: it seeds tracking, and a photometric pose that
 disagrees with it is a detected loss (the frontend's pose is kept, the frame is not mapped)."""
 from dataclasses import replace
-from types import SimpleNamespace
 
 import cv2
 import numpy as np
@@ -195,70 +194,3 @@ def test_refine_keyframes_passes_a_failed_keyframe_slot_to_the_next_frame(cfg, m
     assert bad in slam.lost_frames and bad not in slam.keyframes
     assert bad + 1 in tracked and bad + 1 in slam.keyframes  # the owed keyframe
     assert bad + 2 not in tracked or (bad + 3) % every == 1  # then back to the usual slots
-
-
-def _follow(cfg, ba: bool = True):
-    c = _refine_keyframes_without_checks(cfg)
-    c = replace(c, tracking=replace(c.tracking, follow_keyframes=True))
-    return c if ba else replace(c, mapping=replace(c.mapping, ba_start=1.0))
-
-
-def test_follow_keyframes_places_unrefined_frames_relative_to_the_last_refined_one(cfg, monkeypatch):
-    """`tracking.follow_keyframes`: a frame that keeps the frontend's pose F_i is placed at
-    T_k F_k^-1 F_i, where k is the latest frame refined against the map (map pose T_k,
-    frontend pose F_k): the frontend's own drift since k does not reach the trajectory.
-    (Mapping's BA is off here, so T_k stays as refined.)"""
-    slam = SlamSystem(_follow(cfg, ba=False))
-    estimates, refined = {}, {}
-    real_track, real_estimate = Tracker.track, type(slam.frontend).estimate
-
-    def spy_track(self, frame, T_init):
-        res = real_track(self, frame, T_init)
-        refined[frame.index] = res.T_world_cam.double().numpy()
-        return res
-
-    def spy_estimate(self, index, T_guess):
-        estimates[index] = real_estimate(self, index, T_guess)
-        return estimates[index]
-
-    monkeypatch.setattr(Tracker, "track", spy_track)
-    monkeypatch.setattr(type(slam.frontend), "estimate", spy_estimate)
-    for f in _frames(12):
-        slam.step(f)
-    checked = 0
-    for i in sorted(slam._unrefined):
-        anchors = [k for k in refined if k < i and estimates.get(k) is not None and k not in slam.lost_frames]
-        if not anchors:
-            continue
-        k = anchors[-1]
-        F_k, F_i = estimates[k].T_world_cam, estimates[i].T_world_cam
-        expect = refined[k] @ np.linalg.inv(F_k) @ F_i
-        assert np.allclose(slam.poses[i].double().numpy(), expect, atol=1e-5), i
-        assert not np.allclose(expect, F_i, atol=1e-4)  # the correction is not the identity
-        checked += 1
-    assert checked, "no unrefined frame after a refined one: nothing checked"
-
-
-def test_follow_keyframes_moves_dependents_with_their_keyframe(cfg, monkeypatch):
-    """When the mapping's bundle adjustment moves a keyframe, the frames that depend on it (not
-    keyframes, placed after it) keep their pose relative to it; nothing else moves."""
-    slam = SlamSystem(_follow(cfg))
-    for f in _frames(9):
-        slam.step(f)
-    slam.wait_for_mapping()
-    k = next(k for k, deps in slam._dependents.items() if deps and k != slam.order[0])
-    deps = slam._dependents[k]
-    before = {i: T.clone() for i, T in slam.poses.items()}
-    moved = before[k] @ se3_exp(torch.tensor([0.1, 0.0, 0.05, 0.0, 0.02, 0.0]))
-    job = SimpleNamespace(ba=frozenset({k}), poses={k: moved}, window=(k,), current=k, closing=False)
-    stats = SimpleNamespace(iters=1, loss=0.0, seconds=0.0, terms={})
-    monkeypatch.setattr(slam.mapping, "poll", lambda: [SimpleNamespace(job=job, stats=stats, snapshot=None)])
-    slam._collect()
-    assert torch.equal(slam.poses[k], moved)
-    for i, T in before.items():
-        if i in deps:
-            assert torch.allclose(torch.linalg.inv(slam.poses[k]) @ slam.poses[i], torch.linalg.inv(before[k]) @ T,
-                                  atol=1e-5)
-            assert not torch.allclose(slam.poses[i], T, atol=1e-3)
-        elif i != k:
-            assert torch.equal(slam.poses[i], T), i
