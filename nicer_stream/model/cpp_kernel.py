@@ -1,10 +1,13 @@
 """Build-on-first-use C++ CPU kernels (`model/kernels/*.cpp`), each with a pure-torch reference.
 
 torch's C++ extension loader compiles a source once (g++ and ninja; ~25 s) and caches it under
-~/.cache/torch_extensions. Where a kernel cannot be built, on a GPU, for other dtypes, or with
+~/.cache/torch_extensions, under a name that carries the checkout's path: torch rebuilds a cached
+extension whose source path changed, so two checkouts sharing one name would rebuild each other's
+at every process start (and a build killed midway leaves a lock the next process waits on). Where a kernel cannot be built, on a GPU, for other dtypes, or with
 NICER_STREAM_KERNELS=0, callers take their reference paths (tests compare both)."""
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
 from pathlib import Path
@@ -15,11 +18,16 @@ log = logging.getLogger(__name__)
 KERNEL_DIR = Path(__file__).parent / "kernels"
 
 
+def build_name(name: str, kernel_dir: Path = KERNEL_DIR) -> str:
+    """The extension's cache name: `name` and a hash of the checkout's kernel directory."""
+    return f"{name}_{hashlib.sha1(str(kernel_dir.resolve()).encode()).hexdigest()[:8]}"
+
+
 class CppKernel:
     """One source file under `kernels/`, compiled with `cflags` when first asked for."""
 
     def __init__(self, name: str, source: str, cflags: list[str]) -> None:
-        self.name, self.source, self.cflags = name, KERNEL_DIR / source, cflags
+        self.name, self.source, self.cflags = build_name(name), KERNEL_DIR / source, cflags
         self._module = None
         self._failed = False
 
