@@ -217,6 +217,11 @@ class TrackingConfig:
     tracking); 'keyframes' refines only the frames that become keyframes (they seed the map and
     the frontend's bundle adjustment) and keeps the frontend's pose for the others. Frames the
     frontend has no pose for are refined either way."""
+    rejected_keyframe: str = "pass"
+    """With the frontend on, a keyframe slot whose refined pose fails a check: 'pass' (the frame
+    is lost and not mapped from; with `refine = 'keyframes'` the slot passes to the next frame)
+    or 'frontend' (the frame keeps the frontend's pose and stays a keyframe: with a weak map the
+    passed-on slots can fail one after another, and the map then misses the rest of the path)."""
     optimizer: str = "adam"
     """'adam' on the L1 loss (the paper) or 'gauss_newton' (Levenberg-Marquardt with Huber
     weights: a few iterations, each a forward and three backward passes; `iters` is its maximum)."""

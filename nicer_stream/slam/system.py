@@ -77,6 +77,8 @@ class SlamSystem:
             raise UserError(f"tracking.frontend must be classical, none or auto, got {cfg.tracking.frontend!r}")
         if cfg.tracking.refine not in ("all", "keyframes"):
             raise UserError(f"tracking.refine must be all or keyframes, got {cfg.tracking.refine!r}")
+        if cfg.tracking.rejected_keyframe not in ("pass", "frontend"):
+            raise UserError(f"tracking.rejected_keyframe must be pass or frontend, got {cfg.tracking.rejected_keyframe!r}")
         if cfg.model.sphere_centre not in ("bound", "camera", "auto"):
             raise UserError(f"model.sphere_centre must be bound, camera or auto, got {cfg.model.sphere_centre!r}")
         if cfg.frontend.features not in ("sift", "klt"):
@@ -378,6 +380,12 @@ class SlamSystem:
             log.info("frame %d: the frontend has no pose (too few tracked landmarks)", mf.index)
         # On a detection the frontend's pose (else the motion model's) is kept.
         T = T_pred if reason else res.T_world_cam
+        if (reason and front is not None and self.cfg.tracking.rejected_keyframe == "frontend"
+                and (self._keyframe_slot(n) or self._keyframe_owed)):
+            log.warning("frame %d: refinement rejected (%s): the keyframe keeps the frontend's pose", mf.index, reason)
+            self._frontend_kept.add(mf.index)
+            self.poses[mf.index] = T.detach()
+            return FrameTracked(mf.index, mf.timestamp, T.detach().double().cpu().numpy(), res.loss, res.seconds)
         if reason and front is not None:
             self._frontend_kept.add(mf.index)  # its own pose: consistent with its landmarks
         if reason:
