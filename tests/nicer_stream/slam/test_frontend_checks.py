@@ -194,3 +194,34 @@ def test_refine_keyframes_passes_a_failed_keyframe_slot_to_the_next_frame(cfg, m
     assert bad in slam.lost_frames and bad not in slam.keyframes
     assert bad + 1 in tracked and bad + 1 in slam.keyframes  # the owed keyframe
     assert bad + 2 not in tracked or (bad + 3) % every == 1  # then back to the usual slots
+
+
+def test_rejected_keyframe_frontend_keeps_the_slot_at_the_frontend_pose(cfg, monkeypatch):
+    """`tracking.rejected_keyframe = 'frontend'`: a keyframe slot whose refined pose fails the check
+    keeps the frontend's pose and stays a keyframe; the slot does not pass to the next frame."""
+    c = _refine_keyframes_without_checks(cfg)
+    slam = SlamSystem(replace(c, tracking=replace(c.tracking, rejected_keyframe="frontend")))
+    every = cfg.mapping.keyframe_every
+    bad = 3 * every
+    tracked, seeds = [], {}
+    real = Tracker.track
+
+    def track(self, frame, T_init):
+        tracked.append(frame.index)
+        seeds[frame.index] = T_init.clone()
+        res = real(self, frame, T_init)
+        if frame.index == bad:  # 5 m off the frontend's pose: max_jump_m fires
+            return replace(res, T_world_cam=T_init @ se3_exp(torch.tensor([5.0, 0.0, 0.0, 0.0, 0.0, 0.0])))
+        return res
+
+    monkeypatch.setattr(Tracker, "track", track)
+    events = [e for f in _frames(bad + 3) for e in slam.step(f) if isinstance(e, FrameTracked) and e.index == bad]
+    assert bad in tracked and bad not in slam.lost_frames and bad in slam.keyframes
+    assert events and events[0].lost is None
+    assert np.allclose(events[0].T_world_cam, seeds[bad].double().numpy(), atol=1e-6)  # the frontend's pose
+    assert bad + 1 not in tracked  # no slot owed
+
+
+def test_rejected_keyframe_rejects_unknown_values(cfg):
+    with pytest.raises(Exception, match="tracking.rejected_keyframe must be pass or frontend"):
+        SlamSystem(replace(cfg, tracking=replace(cfg.tracking, rejected_keyframe="keep")))
