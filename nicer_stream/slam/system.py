@@ -228,7 +228,8 @@ class SlamSystem:
 
     def _refine_unrefined_last(self) -> list[Event]:
         """`refine = 'keyframes'`: the closing call maps the latest frame, so its frontend pose
-        is refined against the map first (a second FrameTracked event carries the new pose)."""
+        is refined against the map first (a second FrameTracked event carries the new pose; none
+        when the checks reject it and the frontend's pose stands)."""
         last = self.order[-1]
         if last not in self._unrefined or last not in self.frames:
             return []
@@ -236,10 +237,10 @@ class SlamSystem:
         T_front = self.poses[last]
         res = self.tracker.track(self.frames[last], T_front)
         reason = tracking_failure(res.T_world_cam, T_front, res.loss, self.recent_losses, self.cfg.tracking)
-        if reason is None:
-            self.poses[last] = res.T_world_cam.detach()
-        else:
+        if reason is not None:  # the pose stays as reported: no new event
             log.info("frame %d: refinement before the closing mapping rejected (%s): frontend pose kept", last, reason)
+            return []
+        self.poses[last] = res.T_world_cam.detach()
         return [FrameTracked(last, self.timestamps[last], self.poses[last].double().cpu().numpy(), res.loss,
                              res.seconds, None)]
 

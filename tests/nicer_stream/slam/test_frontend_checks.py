@@ -225,3 +225,25 @@ def test_rejected_keyframe_frontend_keeps_the_slot_at_the_frontend_pose(cfg, mon
 def test_rejected_keyframe_rejects_unknown_values(cfg):
     with pytest.raises(Exception, match="tracking.rejected_keyframe must be pass or frontend"):
         SlamSystem(replace(cfg, tracking=replace(cfg.tracking, rejected_keyframe="keep")))
+
+
+def test_a_rejected_refinement_before_the_closing_call_keeps_the_pose_and_reports_nothing(cfg, monkeypatch):
+    """The latest frame's refinement before the closing call fails a check (5 m off): its frontend
+    pose stands and no second FrameTracked is emitted (the console would call it refined)."""
+    c = _refine_keyframes_without_checks(cfg)
+    slam = SlamSystem(replace(c, mapping=replace(c.mapping, final_iters=2)))
+    for f in _frames(8):
+        slam.step(f)
+    last = slam.order[-1]
+    assert last in slam._unrefined, "the latest frame was refined online: nothing checked"
+    before = slam.poses[last].clone()
+    real = Tracker.track
+
+    def off(self, frame, T_init):
+        res = real(self, frame, T_init)
+        return replace(res, T_world_cam=T_init @ se3_exp(torch.tensor([5.0, 0.0, 0.0, 0.0, 0.0, 0.0])))
+
+    monkeypatch.setattr(Tracker, "track", off)
+    events = slam.finish()
+    assert not [e for e in events if isinstance(e, FrameTracked)]
+    assert torch.equal(slam.poses[last], before)
