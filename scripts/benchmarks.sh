@@ -13,6 +13,10 @@ NS=.venv/bin/nicer-stream
 REPLICA=replica:../shared/data/replica_room0_20f
 OUT=${2:-runs/bench}
 t() { /usr/bin/time -f "wall %e s, peak RSS %M KB" "$@"; }
+# Compiled kernels: one cache per tree. Torch rebuilds an extension whose source path changed, and
+# commits before 8d72127 use one cache name for every checkout, so alternating trees on one cache
+# would time a build.
+kernel_cache() { export TORCH_EXTENSIONS_DIR="$PWD/runs/torch_ext/$(echo "$1" | md5sum | cut -c1-8)"; }
 # speedup_run TREE OUTDIR PRIORS: `nicer-stream run` of the code in TREE (not the editable install),
 # timed into OUTDIR/time.txt (read by speedup_table.py).
 speedup_run() {
@@ -24,9 +28,7 @@ bad = [m.__file__ for m in (nicer_stream, sources, sinks) if not os.path.realpat
 sys.exit(f"imported from outside {sys.argv[1]}: {bad}" if bad else 0)' "$tree")
   rm -rf "$dir" && mkdir -p "$dir"
   echo "== $(git -C "$tree" rev-parse --short HEAD) ($tree) -> $dir"
-  # Compiled kernels: one cache per tree (torch rebuilds an extension whose source path changed,
-  # so alternating trees on one cache would time a build), built before the clock starts.
-  export TORCH_EXTENSIONS_DIR="$root/runs/torch_ext/$(echo "$tree" | md5sum | cut -c1-8)"
+  kernel_cache "$tree"  # built here, before the clock starts
   for m in grid_kernel softplus; do
     if [ -f "$tree/nicer_stream/model/$m.py" ]; then (cd "$tree" && PYTHONPATH="$tree" $py -m "nicer_stream.model.$m" >/dev/null); fi
   done
@@ -95,7 +97,7 @@ case "${1:-all}" in
              for round in 1 2; do
                for tree in "$wt" "$PWD"; do
                  echo "== round $round: $(git -C "$tree" rev-parse --short HEAD)$([ "$tree" = "$PWD" ] && [ -n "$(git status --porcelain)" ] && echo +edits)"
-                 export TORCH_EXTENSIONS_DIR="$root/runs/torch_ext/$(echo "$tree" | md5sum | cut -c1-8)"  # as in speedup_run
+                 kernel_cache "$tree"
                  (cd "$tree" && PYTHONPATH="$tree" "$root/.venv/bin/python" scripts/iter_bench.py --presets fast --iters 10 | tail -1)
                  if [ -n "${RUN:-}" ]; then
                    (cd "$tree" && PYTHONPATH="$tree" "$root/.venv/bin/python" "$root/scripts/output_bench.py" "$root/$RUN")

@@ -2,9 +2,10 @@
 
 torch's C++ extension loader compiles a source once (g++ and ninja; ~25 s) and caches it under
 ~/.cache/torch_extensions, under a name that carries the checkout's path: torch rebuilds a cached
-extension whose source path changed, so two checkouts sharing one name would rebuild each other's
-at every process start (and a build killed midway leaves a lock the next process waits on). Where a kernel cannot be built, on a GPU, for other dtypes, or with
-NICER_STREAM_KERNELS=0, callers take their reference paths (tests compare both)."""
+extension whose source path changed, so two checkouts sharing one name rebuilt each other's at
+every process start. (A build killed midway still leaves a `lock` file there that the next build
+of the same checkout waits on: delete it.) Where a kernel cannot be built, on a GPU, for other
+dtypes, or with NICER_STREAM_KERNELS=0, callers take their reference paths (tests compare both)."""
 from __future__ import annotations
 
 import hashlib

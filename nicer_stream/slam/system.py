@@ -197,7 +197,7 @@ class SlamSystem:
         self.order.append(i)
         self.timestamps[i] = frame.timestamp
         self._store(mf)
-        is_kf = self._keyframe_slot(len(self.order)) or self._keyframe_owed
+        is_kf = self._keyframe_due(len(self.order))
         # A frame whose pose is not trusted never becomes a keyframe nor starts a mapping call.
         trusted = i not in self.lost_frames
         # With keyframe-only refinement a failed slot passes to the next frame, which is then
@@ -221,6 +221,10 @@ class SlamSystem:
     def _keyframe_slot(self, n: int) -> bool:
         """True when the n-th frame in order (1-based) is due to become a keyframe."""
         return n % self.cfg.mapping.keyframe_every == 1 or self.cfg.mapping.keyframe_every == 1
+
+    def _keyframe_due(self, n: int) -> bool:
+        """True when the n-th frame in order is a keyframe slot or takes a failed slot's place."""
+        return self._keyframe_slot(n) or self._keyframe_owed
 
     def _mapping_slot(self, n: int) -> bool:
         """True when the n-th frame in order (1-based) is due to start a mapping call."""
@@ -366,8 +370,8 @@ class SlamSystem:
         elif init == "flow":
             T_pred = self._flow_init(mf, T_pred)
         n = len(self.order) + 1
-        if (front is not None and self.cfg.tracking.refine == "keyframes" and not self._keyframe_slot(n)
-                and not self._mapping_slot(n) and not self._keyframe_owed):
+        if (front is not None and self.cfg.tracking.refine == "keyframes" and not self._keyframe_due(n)
+                and not self._mapping_slot(n)):
             # Neither a keyframe nor mapped from: the frontend's pose stands (its bundle adjustment
             # leans on the refined keyframes).
             self.poses[mf.index] = T_pred.detach()
@@ -381,15 +385,12 @@ class SlamSystem:
             log.info("frame %d: the frontend has no pose (too few tracked landmarks)", mf.index)
         # On a detection the frontend's pose (else the motion model's) is kept.
         T = T_pred if reason else res.T_world_cam
-        if (reason and front is not None and self.cfg.tracking.rejected_keyframe == "frontend"
-                and (self._keyframe_slot(n) or self._keyframe_owed)):
-            log.warning("frame %d: refinement rejected (%s): the keyframe keeps the frontend's pose", mf.index, reason)
-            self._frontend_kept.add(mf.index)
-            self.poses[mf.index] = T.detach()
-            return FrameTracked(mf.index, mf.timestamp, T.detach().double().cpu().numpy(), res.loss, res.seconds)
         if reason and front is not None:
             self._frontend_kept.add(mf.index)  # its own pose: consistent with its landmarks
-        if reason:
+        if reason and front is not None and self.cfg.tracking.rejected_keyframe == "frontend" and self._keyframe_due(n):
+            log.warning("frame %d: refinement rejected (%s): the keyframe keeps the frontend's pose", mf.index, reason)
+            reason = None  # not lost: the frame stays a keyframe (its loss does not enter the running median)
+        elif reason:
             self.lost_frames.append(mf.index)
             log.warning("frame %d: tracking lost (%s): using the %s pose", mf.index, reason,
                         "frontend's" if front is not None else "motion model's")

@@ -171,6 +171,22 @@ def test_refine_keyframes_refines_the_last_frame_before_the_closing_call(cfg, mo
     assert not torch.equal(slam.poses[last], before)
 
 
+def _tracker_off_at(bad, tracked: list, seeds: dict):
+    """A Tracker.track that records each frame tracked and its starting pose, and puts frame `bad`
+    5 m off where it started (the frontend's pose): a detected loss (max_jump_m)."""
+    real = Tracker.track
+
+    def track(self, frame, T_init):
+        tracked.append(frame.index)
+        seeds[frame.index] = T_init.clone()
+        res = real(self, frame, T_init)
+        if frame.index == bad:
+            return replace(res, T_world_cam=T_init @ se3_exp(torch.tensor([5.0, 0.0, 0.0, 0.0, 0.0, 0.0])))
+        return res
+
+    return track
+
+
 def test_refine_keyframes_passes_a_failed_keyframe_slot_to_the_next_frame(cfg, monkeypatch):
     """A keyframe slot whose refined pose fails the check is not a keyframe; with `refine =
     'keyframes'` the next frame is refined and takes the slot (else the map would wait a
@@ -179,16 +195,7 @@ def test_refine_keyframes_passes_a_failed_keyframe_slot_to_the_next_frame(cfg, m
     every = cfg.mapping.keyframe_every
     bad = 3 * every  # a keyframe slot (first_frame start: frame i is the (i+1)-th in order)
     tracked = []
-    real = Tracker.track
-
-    def track(self, frame, T_init):
-        tracked.append(frame.index)
-        res = real(self, frame, T_init)
-        if frame.index == bad:  # 5 m off the frontend's pose: a detected loss (max_jump_m)
-            return replace(res, T_world_cam=T_init @ se3_exp(torch.tensor([5.0, 0.0, 0.0, 0.0, 0.0, 0.0])))
-        return res
-
-    monkeypatch.setattr(Tracker, "track", track)
+    monkeypatch.setattr(Tracker, "track", _tracker_off_at(bad, tracked, {}))
     for f in _frames(bad + 3):
         slam.step(f)
     assert bad in slam.lost_frames and bad not in slam.keyframes
@@ -201,20 +208,9 @@ def test_rejected_keyframe_frontend_keeps_the_slot_at_the_frontend_pose(cfg, mon
     keeps the frontend's pose and stays a keyframe; the slot does not pass to the next frame."""
     c = _refine_keyframes_without_checks(cfg)
     slam = SlamSystem(replace(c, tracking=replace(c.tracking, rejected_keyframe="frontend")))
-    every = cfg.mapping.keyframe_every
-    bad = 3 * every
+    bad = 3 * cfg.mapping.keyframe_every
     tracked, seeds = [], {}
-    real = Tracker.track
-
-    def track(self, frame, T_init):
-        tracked.append(frame.index)
-        seeds[frame.index] = T_init.clone()
-        res = real(self, frame, T_init)
-        if frame.index == bad:  # 5 m off the frontend's pose: max_jump_m fires
-            return replace(res, T_world_cam=T_init @ se3_exp(torch.tensor([5.0, 0.0, 0.0, 0.0, 0.0, 0.0])))
-        return res
-
-    monkeypatch.setattr(Tracker, "track", track)
+    monkeypatch.setattr(Tracker, "track", _tracker_off_at(bad, tracked, seeds))
     events = [e for f in _frames(bad + 3) for e in slam.step(f) if isinstance(e, FrameTracked) and e.index == bad]
     assert bad in tracked and bad not in slam.lost_frames and bad in slam.keyframes
     assert events and events[0].lost is None
