@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import torch
 
-from nicer_stream.model.softplus import SOFTPLUS_BETA, softplus_and_sigmoid
+from nicer_stream.model.softplus import softplus_and_sigmoid, sweep_adjoint
 
 
 class FusedSdfGradMLP(torch.autograd.Function):
@@ -77,9 +77,7 @@ class FusedSdfGradMLP(torch.autograd.Function):
                 vbar = ubar @ weights[i].t()
                 if need_params:
                     grads_w[i].addmm_(vs[i].t(), ubar)
-                s = ss[i]
-                zbar_u[i] = vbar * us[i + 1] * (SOFTPLUS_BETA * s * (1 - s))
-                ubar = vbar * s
+                ubar, zbar_u[i] = sweep_adjoint(vbar, us[i + 1], ss[i])
             if need_params:
                 grads_w[-1][0] += ubar.sum(0)
         # Value path, downwards.
@@ -87,9 +85,10 @@ class FusedSdfGradMLP(torch.autograd.Function):
         hbar = None
         for i in range(n - 1, -1, -1):
             if i < n - 1:
-                zbar = hbar * ss[i] if hbar is not None else None
-                if zbar_u[i] is not None:
-                    zbar = zbar_u[i] if zbar is None else zbar + zbar_u[i]
+                if hbar is None:
+                    zbar = zbar_u[i]
+                else:
+                    zbar = hbar * ss[i] if zbar_u[i] is None else torch.addcmul(zbar_u[i], hbar, ss[i])
             if zbar is None:
                 hbar = None
                 continue

@@ -34,6 +34,22 @@ def softplus_and_sigmoid(z: torch.Tensor, beta: float = SOFTPLUS_BETA) -> tuple[
     return softplus_beta_reference(z, beta), torch.sigmoid(z * beta)
 
 
+def sweep_adjoint(vbar: torch.Tensor, u: torch.Tensor, s: torch.Tensor,
+                  beta: float = SOFTPLUS_BETA) -> tuple[torch.Tensor, torch.Tensor]:
+    """One layer of the SDF-gradient sweep's adjoint (`sdf_grad_mlp.py`), all (N, H):
+    (ubar, zbar) = (vbar s, vbar u beta s (1 - s)); one compiled pass where available."""
+    if _KERNEL.available(vbar) and vbar.dtype == u.dtype == s.dtype:
+        ubar, zbar = _KERNEL.module().sweep_adjoint(vbar, u, s, beta)
+        return ubar, zbar
+    return sweep_adjoint_reference(vbar, u, s, beta)
+
+
+def sweep_adjoint_reference(vbar: torch.Tensor, u: torch.Tensor, s: torch.Tensor,
+                            beta: float = SOFTPLUS_BETA) -> tuple[torch.Tensor, torch.Tensor]:
+    """`sweep_adjoint` in tensor ops."""
+    return vbar * s, vbar * u * (beta * s * (1 - s))
+
+
 def softplus_beta_reference(z: torch.Tensor, beta: float = SOFTPLUS_BETA) -> torch.Tensor:
     """relu(beta z) + log(1 + exp(-|beta z|)), over beta: the same function as softplus,
     ~5x faster than logaddexp/log1p on this CPU (their kernels are not vectorised here)."""

@@ -6,6 +6,7 @@
 // (ix * r + iy) * r + iz, hashed row (ix ^ iy * 2654435761 ^ iz * 805459861) mod size.
 #include <torch/extension.h>
 #include <algorithm>
+#include <type_traits>
 #include <memory>
 #include <vector>
 #include <cmath>
@@ -74,6 +75,175 @@ std::vector<Level> levels_of(const torch::Tensor& res, const torch::Tensor& offs
   return lv;
 }
 
+// Points are taken in blocks of kBlock: first every (point, level) cell of the block is computed
+// and its table rows prefetched, then the rows are read. The reads are random (a table is tens
+// of MB), so the time went to waiting on memory one cell at a time; with the block's rows
+// requested together, the misses overlap. `CC` is the channel count when it is known at
+// compile time (the model's 2, 4 and 32), else 0 and the count is read at run time.
+constexpr int64_t kBlock = 8;
+
+template <typename scalar_t>
+inline void prefetch_rows(const scalar_t* T, const Cell<scalar_t>& c, int64_t C, int rw) {
+  for (int k = 0; k < 8; ++k) {
+    if (rw) __builtin_prefetch(T + c.rows[k] * C, 1);
+    else __builtin_prefetch(T + c.rows[k] * C, 0);
+  }
+}
+
+template <typename scalar_t>
+inline void make_block(const scalar_t* X, const std::vector<Level>& lv, int64_t n0, int64_t nb,
+                       Cell<scalar_t>* cells, const scalar_t* T, int64_t C) {
+  const int64_t L = lv.size();
+  for (int64_t i = 0; i < nb; ++i)
+    for (int64_t l = 0; l < L; ++l) {
+      make_cell(X + 3 * (n0 + i), lv[l], cells[i * L + l]);
+      if (T) prefetch_rows(T, cells[i * L + l], C, 0);
+    }
+}
+
+template <typename scalar_t, int CC>
+void forward_impl(const scalar_t* T, const scalar_t* X, scalar_t* O, scalar_t* J,
+                  const std::vector<Level>& lv, int64_t N, int64_t C_rt) {
+  const int64_t C = CC > 0 ? CC : C_rt, L = lv.size(), LC = L * C;
+  at::parallel_for(0, N, 256, [&](int64_t begin, int64_t end) {
+    std::vector<Cell<scalar_t>> cells(kBlock * L);
+    for (int64_t n0 = begin; n0 < end; n0 += kBlock) {
+      const int64_t nb = std::min(kBlock, end - n0);
+      make_block(X, lv, n0, nb, cells.data(), T, C);
+      for (int64_t i = 0; i < nb; ++i) {
+        const int64_t n = n0 + i;
+        for (int64_t l = 0; l < L; ++l) {
+          const Cell<scalar_t>& c = cells[i * L + l];
+          scalar_t* o = O + n * LC + l * C;
+          scalar_t* j[3] = {nullptr, nullptr, nullptr};
+          for (int64_t ch = 0; ch < C; ++ch) o[ch] = 0;
+          if (J) for (int a = 0; a < 3; ++a) {
+            j[a] = J + (n * 3 + a) * LC + l * C;
+            for (int64_t ch = 0; ch < C; ++ch) j[a][ch] = 0;
+          }
+          for (int k = 0; k < 8; ++k) {
+            const scalar_t* t = T + c.rows[k] * C;
+            for (int64_t ch = 0; ch < C; ++ch) o[ch] += c.w[k] * t[ch];
+            if (J) for (int a = 0; a < 3; ++a) {
+              const scalar_t d = c.dw[a][k] * c.scale;
+              for (int64_t ch = 0; ch < C; ++ch) j[a][ch] += d * t[ch];
+            }
+          }
+        }
+      }
+    }
+  });
+}
+
+// g_x of one (point, level) cell: d/dx of <g_out, out> + <g_jac, jac>, before the clamp.
+template <typename scalar_t, int CC>
+inline void cell_grad_x(const Cell<scalar_t>& c, const scalar_t* T, const scalar_t* go,
+                        const scalar_t* const* gj, int64_t C_rt, scalar_t* gf_total) {
+  const int64_t C = CC > 0 ? CC : C_rt;
+  scalar_t gf[3] = {0, 0, 0};
+  for (int k = 0; k < 8; ++k) {
+    const scalar_t* t = T + c.rows[k] * C;
+    scalar_t dot_go = 0;
+    for (int64_t ch = 0; ch < C; ++ch) dot_go += t[ch] * go[ch];
+    for (int b = 0; b < 3; ++b) gf[b] += c.dw[b][k] * dot_go;
+    if (gj[0]) {
+      // jac_a = scale * sum_k dw_a,k t_k; d dw_a,k / d frac_b (b != a) = s_a s_b f_other.
+      const int bits[3] = {(k >> 2) & 1, (k >> 1) & 1, k & 1};
+      for (int a = 0; a < 3; ++a) {
+        scalar_t dot_gj = 0;
+        for (int64_t ch = 0; ch < C; ++ch) dot_gj += t[ch] * gj[a][ch];
+        for (int b = 0; b < 3; ++b) {
+          if (b == a) continue;
+          const int o = 3 - a - b;
+          const scalar_t sa = bits[a] ? 1 : -1, sb = bits[b] ? 1 : -1;
+          const scalar_t fo = bits[o] ? c.frac[o] : 1 - c.frac[o];
+          gf[b] += c.scale * sa * sb * fo * dot_gj;
+        }
+      }
+    }
+  }
+  for (int b = 0; b < 3; ++b) gf_total[b] += c.inside[b] ? gf[b] * c.scale : 0;
+}
+
+template <typename scalar_t, int CC>
+void backward_impl(const scalar_t* T, const scalar_t* X, const scalar_t* GO, const scalar_t* GJ,
+                   scalar_t* TG, scalar_t* GX, const std::vector<Level>& lv, int64_t N, int64_t C_rt) {
+  const int64_t C = CC > 0 ? CC : C_rt, L = lv.size(), LC = L * C;
+  // Pass 1 (parallel over points): each (level, point, corner)'s row and table gradient,
+  // level-major, and the points' gradients. Pass 2 adds the table gradients in point order:
+  // one thread per level when there are enough levels (a level's rows then stay in that
+  // core's cache), else thread t takes the rows with row mod T == t (T a power of two).
+  // Deterministic for a given thread count, without atomics: every row is updated by one thread.
+  const int64_t M = TG ? N * L * 8 : 0;
+  std::unique_ptr<int64_t[]> rows(new int64_t[M]);  // uninitialised: every entry is written
+  std::unique_ptr<scalar_t[]> contrib(new scalar_t[M * C]);
+  at::parallel_for(0, N, 256, [&](int64_t begin, int64_t end) {
+    std::vector<Cell<scalar_t>> cells(kBlock * L);
+    for (int64_t n0 = begin; n0 < end; n0 += kBlock) {
+      const int64_t nb = std::min(kBlock, end - n0);
+      make_block(X, lv, n0, nb, cells.data(), GX ? T : nullptr, C);
+      for (int64_t i = 0; i < nb; ++i) {
+        const int64_t n = n0 + i;
+        scalar_t gf_total[3] = {0, 0, 0};
+        for (int64_t l = 0; l < L; ++l) {
+          const Cell<scalar_t>& c = cells[i * L + l];
+          const scalar_t* go = GO + n * LC + l * C;
+          const scalar_t* gj[3] = {nullptr, nullptr, nullptr};
+          if (GJ) for (int a = 0; a < 3; ++a) gj[a] = GJ + (n * 3 + a) * LC + l * C;
+          if (TG) {
+            const int64_t base = (l * N + n) * 8;
+            for (int k = 0; k < 8; ++k) {
+              rows[base + k] = c.rows[k];
+              scalar_t* v = contrib.get() + (base + k) * C;
+              for (int64_t ch = 0; ch < C; ++ch) {
+                v[ch] = c.w[k] * go[ch];
+                if (GJ) v[ch] += c.scale * (c.dw[0][k] * gj[0][ch] + c.dw[1][k] * gj[1][ch] + c.dw[2][k] * gj[2][ch]);
+              }
+            }
+          }
+          if (GX) cell_grad_x<scalar_t, CC>(c, T, go, gj, C, gf_total);
+        }
+        if (GX) for (int b = 0; b < 3; ++b) GX[3 * n + b] = gf_total[b];
+      }
+    }
+  });
+  if (!TG) return;
+  constexpr int64_t ahead = 16;  // rows are random: request the row `ahead` entries on early
+  auto add_range = [&](int64_t from, int64_t to, int64_t mask, int64_t owner) {
+    for (int64_t m = from; m < to; ++m) {
+      if (m + ahead < to) __builtin_prefetch(TG + rows[m + ahead] * C, 1);
+      const int64_t row = rows[m];
+      if ((row & mask) != owner) continue;
+      scalar_t* tg = TG + row * C;
+      const scalar_t* v = contrib.get() + m * C;
+      for (int64_t ch = 0; ch < C; ++ch) tg[ch] += v[ch];
+    }
+  };
+  const int64_t threads = std::max<int64_t>(1, std::min<int64_t>(at::get_num_threads(), N / 1024 + 1));
+  if (L >= threads) {
+    at::parallel_for(0, L, 1, [&](int64_t first, int64_t last) {
+      for (int64_t l = first; l < last; ++l) add_range(l * N * 8, (l + 1) * N * 8, 0, 0);
+    });
+  } else {
+    int64_t n_owner = 1;
+    while (n_owner * 2 <= threads) n_owner *= 2;
+    at::parallel_for(0, n_owner, 1, [&](int64_t first, int64_t last) {
+      for (int64_t owner = first; owner < last; ++owner) add_range(0, M, n_owner - 1, owner);
+    });
+  }
+}
+
+// Calls f<CC>() with the compile-time channel count for the model's tables, else CC = 0.
+template <typename F>
+void with_channels(int64_t C, F&& f) {
+  switch (C) {
+    case 2: f(std::integral_constant<int, 2>()); break;
+    case 4: f(std::integral_constant<int, 4>()); break;
+    case 32: f(std::integral_constant<int, 32>()); break;
+    default: f(std::integral_constant<int, 0>());
+  }
+}
+
 }  // namespace
 
 // table (R, C), x (N, 3) -> out (N, L*C), jac (N, 3, L*C) (empty unless with_jac)
@@ -85,31 +255,10 @@ std::vector<torch::Tensor> grid_forward(torch::Tensor table, torch::Tensor x, to
   auto out = torch::empty({N, L * C}, table.options());
   auto jac = with_jac ? torch::empty({N, 3, L * C}, table.options()) : torch::empty({0}, table.options());
   AT_DISPATCH_FLOATING_TYPES(table.scalar_type(), "grid_forward", [&] {
-    const scalar_t* T = table.data_ptr<scalar_t>();
-    const scalar_t* X = x.data_ptr<scalar_t>();
-    scalar_t* O = out.data_ptr<scalar_t>();
-    scalar_t* J = with_jac ? jac.data_ptr<scalar_t>() : nullptr;
-    at::parallel_for(0, N, 256, [&](int64_t begin, int64_t end) {
-      Cell<scalar_t> c;
-      for (int64_t n = begin; n < end; ++n) {
-        for (int64_t l = 0; l < L; ++l) {
-          make_cell(X + 3 * n, lv[l], c);
-          scalar_t* o = O + n * L * C + l * C;
-          for (int64_t ch = 0; ch < C; ++ch) o[ch] = 0;
-          if (J) for (int a = 0; a < 3; ++a) for (int64_t ch = 0; ch < C; ++ch) J[(n * 3 + a) * L * C + l * C + ch] = 0;
-          for (int k = 0; k < 8; ++k) {
-            const scalar_t* t = T + c.rows[k] * C;
-            for (int64_t ch = 0; ch < C; ++ch) o[ch] += c.w[k] * t[ch];
-            if (J) {
-              for (int a = 0; a < 3; ++a) {
-                scalar_t* j = J + (n * 3 + a) * L * C + l * C;
-                const scalar_t d = c.dw[a][k] * c.scale;
-                for (int64_t ch = 0; ch < C; ++ch) j[ch] += d * t[ch];
-              }
-            }
-          }
-        }
-      }
+    with_channels(C, [&](auto cc) {
+      forward_impl<scalar_t, decltype(cc)::value>(table.data_ptr<scalar_t>(), x.data_ptr<scalar_t>(),
+                                                  out.data_ptr<scalar_t>(), with_jac ? jac.data_ptr<scalar_t>() : nullptr,
+                                                  lv, N, C);
     });
   });
   return {out, jac};
@@ -117,109 +266,21 @@ std::vector<torch::Tensor> grid_forward(torch::Tensor table, torch::Tensor x, to
 
 // Gradients of grid_forward given g_out (N, L*C) and g_jac (N, 3, L*C) or empty.
 // Adds the table's gradient into table_grad (R, C) when it is defined; returns g_x (N, 3)
-// (zeros unless need_x). Deterministic for a given thread count, and without atomics: every
-// table row is updated by one thread, in point order.
+// (zeros unless need_x).
 torch::Tensor grid_backward(torch::Tensor table, torch::Tensor x, torch::Tensor res, torch::Tensor offsets,
                             torch::Tensor sizes, torch::Tensor hashed, torch::Tensor g_out, torch::Tensor g_jac,
                             torch::Tensor table_grad, bool need_x) {
   auto lv = levels_of(res, offsets, sizes, hashed);
-  const int64_t N = x.size(0), C = table.size(1), L = lv.size();
+  const int64_t N = x.size(0), C = table.size(1);
   const bool has_jac = g_jac.numel() > 0, need_table = table_grad.defined() && table_grad.numel() > 0;
   auto g_x = torch::zeros({N, 3}, x.options());
+  if (!need_table && !need_x) return g_x;
   AT_DISPATCH_FLOATING_TYPES(table.scalar_type(), "grid_backward", [&] {
-    const scalar_t* T = table.data_ptr<scalar_t>();
-    const scalar_t* X = x.data_ptr<scalar_t>();
-    const scalar_t* GO = g_out.data_ptr<scalar_t>();
-    const scalar_t* GJ = has_jac ? g_jac.data_ptr<scalar_t>() : nullptr;
-    scalar_t* TG = need_table ? table_grad.data_ptr<scalar_t>() : nullptr;
-    scalar_t* GX = g_x.data_ptr<scalar_t>();
-    if (TG) {
-      // Pass 1 (parallel over points): each (level, point, corner)'s row and gradient, level-major.
-      // Pass 2 adds them in point order: one thread per level when there are enough levels (a
-      // level's rows then stay in that core's cache), else thread t takes the rows with
-      // row mod T == t (T a power of two).
-      const int64_t M = N * L * 8;
-      std::unique_ptr<int64_t[]> rows(new int64_t[M]);  // uninitialised: every entry is written
-      std::unique_ptr<scalar_t[]> contrib(new scalar_t[M * C]);
-      at::parallel_for(0, N, 256, [&](int64_t begin, int64_t end) {
-        Cell<scalar_t> c;
-        for (int64_t n = begin; n < end; ++n) {
-          for (int64_t l = 0; l < L; ++l) {
-            make_cell(X + 3 * n, lv[l], c);
-            const scalar_t* go = GO + n * L * C + l * C;
-            const int64_t base = (l * N + n) * 8;
-            for (int k = 0; k < 8; ++k) {
-              rows[base + k] = c.rows[k];
-              scalar_t* v = contrib.get() + (base + k) * C;
-              for (int64_t ch = 0; ch < C; ++ch) {
-                v[ch] = c.w[k] * go[ch];
-                if (GJ) {
-                  const scalar_t* gj = GJ + n * 3 * L * C + l * C + ch;
-                  v[ch] += c.scale * (c.dw[0][k] * gj[0] + c.dw[1][k] * gj[L * C] + c.dw[2][k] * gj[2 * L * C]);
-                }
-              }
-            }
-          }
-        }
-      });
-      auto add_range = [&](int64_t from, int64_t to, int64_t mask, int64_t owner) {
-        for (int64_t m = from; m < to; ++m) {
-          const int64_t row = rows[m];
-          if ((row & mask) != owner) continue;
-          scalar_t* tg = TG + row * C;
-          const scalar_t* v = contrib.get() + m * C;
-          for (int64_t ch = 0; ch < C; ++ch) tg[ch] += v[ch];
-        }
-      };
-      const int64_t threads = std::max<int64_t>(1, std::min<int64_t>(at::get_num_threads(), N / 1024 + 1));
-      if (L >= threads) {
-        at::parallel_for(0, L, 1, [&](int64_t first, int64_t last) {
-          for (int64_t l = first; l < last; ++l) add_range(l * N * 8, (l + 1) * N * 8, 0, 0);
-        });
-      } else {
-        int64_t n_owner = 1;
-        while (n_owner * 2 <= threads) n_owner *= 2;
-        at::parallel_for(0, n_owner, 1, [&](int64_t first, int64_t last) {
-          for (int64_t owner = first; owner < last; ++owner) add_range(0, M, n_owner - 1, owner);
-        });
-      }
-    }
-    if (!need_x) return;
-    at::parallel_for(0, N, 256, [&](int64_t begin, int64_t end) {
-      Cell<scalar_t> c;
-      for (int64_t n = begin; n < end; ++n) {
-        scalar_t gf_total[3] = {0, 0, 0};
-        for (int64_t l = 0; l < L; ++l) {
-          make_cell(X + 3 * n, lv[l], c);
-          const scalar_t* go = GO + n * L * C + l * C;
-          const scalar_t* gj[3] = {nullptr, nullptr, nullptr};
-          if (GJ) for (int a = 0; a < 3; ++a) gj[a] = GJ + (n * 3 + a) * L * C + l * C;
-          scalar_t gf[3] = {0, 0, 0};
-          for (int k = 0; k < 8; ++k) {
-            const scalar_t* t = T + c.rows[k] * C;
-            scalar_t dot_go = 0;
-            for (int64_t ch = 0; ch < C; ++ch) dot_go += t[ch] * go[ch];
-            for (int b = 0; b < 3; ++b) gf[b] += c.dw[b][k] * dot_go;
-            if (GJ) {
-              // jac_a = scale * sum_k dw_a,k t_k; d dw_a,k / d frac_b (b != a) = s_a s_b f_other.
-              int64_t bits[3] = {(k >> 2) & 1, (k >> 1) & 1, k & 1};
-              for (int a = 0; a < 3; ++a) {
-                scalar_t dot_gj = 0;
-                for (int64_t ch = 0; ch < C; ++ch) dot_gj += t[ch] * gj[a][ch];
-                for (int b = 0; b < 3; ++b) {
-                  if (b == a) continue;
-                  int o = 3 - a - b;
-                  scalar_t sa = bits[a] ? 1 : -1, sb = bits[b] ? 1 : -1;
-                  scalar_t fo = bits[o] ? c.frac[o] : 1 - c.frac[o];
-                  gf[b] += c.scale * sa * sb * fo * dot_gj;
-                }
-              }
-            }
-          }
-          for (int b = 0; b < 3; ++b) gf_total[b] += c.inside[b] ? gf[b] * c.scale : 0;
-        }
-        for (int b = 0; b < 3; ++b) GX[3 * n + b] = gf_total[b];
-      }
+    with_channels(C, [&](auto cc) {
+      backward_impl<scalar_t, decltype(cc)::value>(
+          table.data_ptr<scalar_t>(), x.data_ptr<scalar_t>(), g_out.data_ptr<scalar_t>(),
+          has_jac ? g_jac.data_ptr<scalar_t>() : nullptr, need_table ? table_grad.data_ptr<scalar_t>() : nullptr,
+          need_x ? g_x.data_ptr<scalar_t>() : nullptr, lv, N, C);
     });
   });
   return g_x;

@@ -70,6 +70,34 @@ std::vector<torch::Tensor> softplus_sigmoid(torch::Tensor z, double beta, bool w
   return {sp, sg};
 }
 
+// One layer of the SDF-gradient sweep's adjoint (model/sdf_grad_mlp.py), in one pass:
+// ubar = vbar s and zbar = vbar u beta s (1 - s), all (N, H) contiguous. The tensor form takes
+// six passes and four temporaries.
+template <typename T>
+static void adjoint(const T* V, const T* U, const T* S, T* UB, T* ZB, int64_t n, T beta) {
+#pragma omp parallel for schedule(static)
+  for (int64_t c = 0; c < n; c += 4096) {
+    const int64_t end = std::min(n, c + 4096);
+#pragma omp simd
+    for (int64_t i = c; i < end; ++i) {
+      const T v = V[i], si = S[i];
+      UB[i] = v * si;
+      ZB[i] = v * U[i] * (beta * si * (T(1) - si));
+    }
+  }
+}
+
+std::vector<torch::Tensor> sweep_adjoint(torch::Tensor vbar, torch::Tensor u, torch::Tensor s, double beta) {
+  vbar = vbar.contiguous(); u = u.contiguous(); s = s.contiguous();
+  auto ubar = torch::empty_like(vbar), zbar = torch::empty_like(vbar);
+  AT_DISPATCH_FLOATING_TYPES(vbar.scalar_type(), "sweep_adjoint", [&] {
+    adjoint<scalar_t>(vbar.data_ptr<scalar_t>(), u.data_ptr<scalar_t>(), s.data_ptr<scalar_t>(),
+                      ubar.data_ptr<scalar_t>(), zbar.data_ptr<scalar_t>(), vbar.numel(), (scalar_t)beta);
+  });
+  return {ubar, zbar};
+}
+
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("softplus_sigmoid", &softplus_sigmoid, "softplus(beta z)/beta and sigmoid(beta z)");
+  m.def("sweep_adjoint", &sweep_adjoint, "ubar = vbar s, zbar = vbar u beta s (1 - s)");
 }

@@ -52,6 +52,25 @@ def test_dense_kernel_equals_reference(with_jac):
         assert torch.allclose(a, b, atol=1e-10)
 
 
+@pytest.mark.parametrize("channels", [1, 2, 4, 32])
+@pytest.mark.parametrize("n", [1, 7, 37])
+def test_every_channel_count_and_block_tail_equals_reference(channels, n):
+    # The kernel has compile-time paths for 2, 4 and 32 channels and takes points in blocks of 8:
+    # every path and a block's tail must give the reference's values and gradients.
+    torch.manual_seed(channels)
+    d = DenseGrids([4, 7], channels).double()
+    with torch.no_grad():
+        d.table.normal_()
+    x = _x(n, seed=n)
+    g = torch.Generator().manual_seed(n)
+    w = [torch.randn(n, d.out_dim, dtype=torch.float64, generator=g),
+         torch.randn(n, 3, d.out_dim, dtype=torch.float64, generator=g)]
+    fast = _grads(lambda p: d(p, True), x, d.table, w)
+    ref = _grads(lambda p: d.reference_forward(p, True), x, d.table, w)
+    for a, b in zip(fast, ref):
+        assert torch.allclose(a, b, atol=1e-10)
+
+
 def test_hash_kernel_equals_reference():
     h, x = _hash(), _x(300)
     w = [torch.randn(300, h.out_dim, dtype=torch.float64, generator=torch.Generator().manual_seed(3))]

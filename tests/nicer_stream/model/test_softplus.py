@@ -4,7 +4,7 @@ import pytest
 import torch
 
 from nicer_stream.model.softplus import (SOFTPLUS_BETA, kernel_available, softplus_and_sigmoid, softplus_beta,
-                                         softplus_beta_reference)
+                                         softplus_beta_reference, sweep_adjoint, sweep_adjoint_reference)
 
 needs_kernel = pytest.mark.skipif(not kernel_available(torch.zeros(1)), reason="softplus kernel could not be built here")
 
@@ -60,3 +60,15 @@ def test_kernel_gives_each_value_independently_of_position_and_alignment():
     for start in (1, 3, 17):
         part = softplus_and_sigmoid(z[start:].clone())
         assert torch.equal(part[0], whole[0][start:]) and torch.equal(part[1], whole[1][start:])
+
+
+@needs_kernel
+@pytest.mark.parametrize("dtype,tol", [(torch.float32, 1e-6), (torch.float64, 1e-13)])
+def test_sweep_adjoint_kernel_matches_reference(dtype, tol):
+    # 4099 values: whole 4096-chunks and a tail; sigmoid values in (0, 1), non-contiguous input.
+    g = torch.Generator().manual_seed(0)
+    vbar, u = (torch.randn(4099, 2, dtype=dtype, generator=g)[:, 0] for _ in range(2))
+    s = torch.rand(4099, dtype=dtype, generator=g)
+    got, ref = sweep_adjoint(vbar, u, s), sweep_adjoint_reference(vbar, u, s)
+    for a, b in zip(got, ref):
+        assert a.shape == b.shape and torch.allclose(a, b, rtol=tol, atol=tol)
