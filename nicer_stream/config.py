@@ -410,15 +410,16 @@ def fast() -> SlamConfig:
         # 3.2 cm). PnP alone (0 iterations) drifted (ATE 2.2 cm): the RGB refinement stays.
         # The last iterate rather than the lowest of 512-pixel losses measured on different
         # pixels; only pixels ending in mapped voxels.
-        # The classical frontend stays off here (measured 2026-12-02, oracle priors, seed 0): on the
-        # Replica clip it alone (no photometric iterations) gave ATE 0.18 cm at 0.14 s/frame against
-        # 0.30 cm at 7.8 s/frame, and with the 60 Adam iterations on top 0.31 cm; on the demo room
-        # (40 frames) it alone drifted to ATE 4.0 cm (today 0.95 cm). `tracking.frontend = "classical"`
-        # turns it on (README, docs/performance.md). 'auto' turns it on with `--priors stereo`
-        # (Replica, stereo priors, seed 0: without it ATE 1.08 cm, mesh accuracy 87 cm; with it
-        # 0.54 cm and 27 cm: the stereo depth is only as good as the keyframe poses).
-        tracking=TrackingConfig(iters=60, rays=512, lr=3e-3, init="flow", keep="last", min_count=1000.0,
-                                n_probe=32, n_importance=12, n_uniform=0, frontend="auto"),
+        # The classical frontend seeds every pose and only keyframes are refined against the map,
+        # with 20 Adam iterations (a keyframe whose refinement fails keeps the frontend's pose).
+        # Measured 2026-12-03 (docs/performance.md, `oracle:clean`): Replica clip, seeds 0-2, ATE
+        # 0.22-0.26 cm, mesh 2.84-2.95 / 1.75-1.91 cm, PSNR 29.5-30.6 dB, seed 0 in 144 s where refining
+        # every frame with 60 iterations took 477 s (ATE 0.30 cm); demo room ATE 0.79 cm, mesh
+        # 3.54 / 2.81 cm against 0.75 cm and 4.46 / 3.39 cm refining every frame. The frontend alone
+        # drifts on the room (ATE 4.0 cm): the keyframes' refinement stays.
+        tracking=TrackingConfig(iters=20, rays=512, lr=3e-3, init="flow", keep="last", min_count=1000.0,
+                                n_probe=32, n_importance=12, n_uniform=0, frontend="classical",
+                                refine="keyframes", rejected_keyframe="frontend"),
         mesh=MeshConfig(resolution=192),
     )
 

@@ -63,6 +63,10 @@ keyframe_every = 2
 [tracking]
 iters = 3
 rays = 64
+# The paper's tracking on every frame: the mechanics these tests check, at 48 px where the
+# classical frontend (`fast`'s default, tested in tests/nicer_stream/frontend/) finds few tracks.
+frontend = "none"
+refine = "all"
 [mesh]
 resolution = 24
 """

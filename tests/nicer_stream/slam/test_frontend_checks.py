@@ -38,7 +38,8 @@ def test_disagreement_bounds():
 def cfg(tiny_config):
     cv2.setRNGSeed(0)  # PnP's RANSAC draws from OpenCV's global RNG: independent of test order
     c = load("fast", tiny_config)
-    return replace(c, max_side=160, tracking=replace(c.tracking, frontend="classical"),
+    # A rejected keyframe slot is lost here ('pass'); `fast`'s 'frontend' is tested below.
+    return replace(c, max_side=160, tracking=replace(c.tracking, frontend="classical", rejected_keyframe="pass"),
                    mapping=replace(c.mapping, init="first_frame"))
 
 
