@@ -85,11 +85,8 @@ std::vector<Level> levels_of(const torch::Tensor& res, const torch::Tensor& offs
 constexpr int64_t kBlock = 8;
 
 template <typename scalar_t>
-inline void prefetch_rows(const scalar_t* T, const Cell<scalar_t>& c, int64_t C, int rw) {
-  for (int k = 0; k < 8; ++k) {
-    if (rw) __builtin_prefetch(T + c.rows[k] * C, 1);
-    else __builtin_prefetch(T + c.rows[k] * C, 0);
-  }
+inline void prefetch_rows(const scalar_t* T, const Cell<scalar_t>& c, int64_t C) {
+  for (int k = 0; k < 8; ++k) __builtin_prefetch(T + c.rows[k] * C);
 }
 
 template <typename scalar_t>
@@ -99,7 +96,7 @@ inline void make_block(const scalar_t* X, const std::vector<Level>& lv, int64_t 
   for (int64_t i = 0; i < nb; ++i)
     for (int64_t l = 0; l < L; ++l) {
       make_cell(X + 3 * (n0 + i), lv[l], cells[i * L + l]);
-      if (T) prefetch_rows(T, cells[i * L + l], C, 0);
+      if (T) prefetch_rows(T, cells[i * L + l], C);
     }
 }
 
