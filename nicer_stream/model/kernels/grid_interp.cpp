@@ -75,29 +75,27 @@ std::vector<Level> levels_of(const torch::Tensor& res, const torch::Tensor& offs
   return lv;
 }
 
-// Points are taken in blocks of kBlock: first every (point, level) cell of the block is computed
-// and its table rows prefetched, then the rows are read. The reads are random (a table is tens
-// of MB): one level at a time, each waited for its own misses; with all levels' rows requested
-// together the misses overlap (docs/performance.md: 2x on the fine grid and the colour hash, forward and
-// backward; blocks of 1, 4, 8 and 16 points measured the same). `CC` is the channel count when
-// it is known at compile time (the model's 2, 4 and 32), else 0 and read at run time (no
-// measurable gain on its own, kept for the unrolled channel loops).
-constexpr int64_t kBlock = 8;
+// For each point, first its cell on every level is computed and the cells' table rows
+// prefetched, then the rows are read. The reads are random (a table is tens of MB): one level at
+// a time, each waited for its own misses; with all levels' rows requested together the misses
+// overlap (docs/performance.md: 2x on the fine grid and the colour hash, forward and backward;
+// blocks of 1, 4, 8 and 16 points per prefetch measured the same, so it is one point). `CC` is the
+// channel count when it is known at compile time (the model's 2, 4 and 32), else 0 and read at
+// run time (no measurable gain on its own, kept for the unrolled channel loops).
 
 template <typename scalar_t>
 inline void prefetch_rows(const scalar_t* T, const Cell<scalar_t>& c, int64_t C) {
   for (int k = 0; k < 8; ++k) __builtin_prefetch(T + c.rows[k] * C);
 }
 
+// Point n's cell on every level into cells[0..L), its rows prefetched from T unless T is null.
 template <typename scalar_t>
-inline void make_block(const scalar_t* X, const std::vector<Level>& lv, int64_t n0, int64_t nb,
-                       Cell<scalar_t>* cells, const scalar_t* T, int64_t C) {
-  const int64_t L = lv.size();
-  for (int64_t i = 0; i < nb; ++i)
-    for (int64_t l = 0; l < L; ++l) {
-      make_cell(X + 3 * (n0 + i), lv[l], cells[i * L + l]);
-      if (T) prefetch_rows(T, cells[i * L + l], C);
-    }
+inline void point_cells(const scalar_t* X, const std::vector<Level>& lv, int64_t n,
+                        Cell<scalar_t>* cells, const scalar_t* T, int64_t C) {
+  for (size_t l = 0; l < lv.size(); ++l) {
+    make_cell(X + 3 * n, lv[l], cells[l]);
+    if (T) prefetch_rows(T, cells[l], C);
+  }
 }
 
 template <typename scalar_t, int CC>
@@ -105,28 +103,24 @@ void forward_impl(const scalar_t* T, const scalar_t* X, scalar_t* O, scalar_t* J
                   const std::vector<Level>& lv, int64_t N, int64_t C_rt) {
   const int64_t C = CC > 0 ? CC : C_rt, L = lv.size(), LC = L * C;
   at::parallel_for(0, N, 256, [&](int64_t begin, int64_t end) {
-    std::vector<Cell<scalar_t>> cells(kBlock * L);
-    for (int64_t n0 = begin; n0 < end; n0 += kBlock) {
-      const int64_t nb = std::min(kBlock, end - n0);
-      make_block(X, lv, n0, nb, cells.data(), T, C);
-      for (int64_t i = 0; i < nb; ++i) {
-        const int64_t n = n0 + i;
-        for (int64_t l = 0; l < L; ++l) {
-          const Cell<scalar_t>& c = cells[i * L + l];
-          scalar_t* o = O + n * LC + l * C;
-          scalar_t* j[3] = {nullptr, nullptr, nullptr};
-          for (int64_t ch = 0; ch < C; ++ch) o[ch] = 0;
+    std::vector<Cell<scalar_t>> cells(L);
+    for (int64_t n = begin; n < end; ++n) {
+      point_cells(X, lv, n, cells.data(), T, C);
+      for (int64_t l = 0; l < L; ++l) {
+        const Cell<scalar_t>& c = cells[l];
+        scalar_t* o = O + n * LC + l * C;
+        scalar_t* j[3] = {nullptr, nullptr, nullptr};
+        for (int64_t ch = 0; ch < C; ++ch) o[ch] = 0;
+        if (J) for (int a = 0; a < 3; ++a) {
+          j[a] = J + (n * 3 + a) * LC + l * C;
+          for (int64_t ch = 0; ch < C; ++ch) j[a][ch] = 0;
+        }
+        for (int k = 0; k < 8; ++k) {
+          const scalar_t* t = T + c.rows[k] * C;
+          for (int64_t ch = 0; ch < C; ++ch) o[ch] += c.w[k] * t[ch];
           if (J) for (int a = 0; a < 3; ++a) {
-            j[a] = J + (n * 3 + a) * LC + l * C;
-            for (int64_t ch = 0; ch < C; ++ch) j[a][ch] = 0;
-          }
-          for (int k = 0; k < 8; ++k) {
-            const scalar_t* t = T + c.rows[k] * C;
-            for (int64_t ch = 0; ch < C; ++ch) o[ch] += c.w[k] * t[ch];
-            if (J) for (int a = 0; a < 3; ++a) {
-              const scalar_t d = c.dw[a][k] * c.scale;
-              for (int64_t ch = 0; ch < C; ++ch) j[a][ch] += d * t[ch];
-            }
+            const scalar_t d = c.dw[a][k] * c.scale;
+            for (int64_t ch = 0; ch < C; ++ch) j[a][ch] += d * t[ch];
           }
         }
       }
@@ -177,33 +171,29 @@ void backward_impl(const scalar_t* T, const scalar_t* X, const scalar_t* GO, con
   std::unique_ptr<int64_t[]> rows(new int64_t[M]);  // uninitialised: every entry is written
   std::unique_ptr<scalar_t[]> contrib(new scalar_t[M * C]);
   at::parallel_for(0, N, 256, [&](int64_t begin, int64_t end) {
-    std::vector<Cell<scalar_t>> cells(kBlock * L);
-    for (int64_t n0 = begin; n0 < end; n0 += kBlock) {
-      const int64_t nb = std::min(kBlock, end - n0);
-      make_block(X, lv, n0, nb, cells.data(), GX ? T : nullptr, C);
-      for (int64_t i = 0; i < nb; ++i) {
-        const int64_t n = n0 + i;
-        scalar_t gf_total[3] = {0, 0, 0};
-        for (int64_t l = 0; l < L; ++l) {
-          const Cell<scalar_t>& c = cells[i * L + l];
-          const scalar_t* go = GO + n * LC + l * C;
-          const scalar_t* gj[3] = {nullptr, nullptr, nullptr};
-          if (GJ) for (int a = 0; a < 3; ++a) gj[a] = GJ + (n * 3 + a) * LC + l * C;
-          if (TG) {
-            const int64_t base = (l * N + n) * 8;
-            for (int k = 0; k < 8; ++k) {
-              rows[base + k] = c.rows[k];
-              scalar_t* v = contrib.get() + (base + k) * C;
-              for (int64_t ch = 0; ch < C; ++ch) {
-                v[ch] = c.w[k] * go[ch];
-                if (GJ) v[ch] += c.scale * (c.dw[0][k] * gj[0][ch] + c.dw[1][k] * gj[1][ch] + c.dw[2][k] * gj[2][ch]);
-              }
+    std::vector<Cell<scalar_t>> cells(L);
+    for (int64_t n = begin; n < end; ++n) {
+      point_cells(X, lv, n, cells.data(), GX ? T : nullptr, C);
+      scalar_t gf_total[3] = {0, 0, 0};
+      for (int64_t l = 0; l < L; ++l) {
+        const Cell<scalar_t>& c = cells[l];
+        const scalar_t* go = GO + n * LC + l * C;
+        const scalar_t* gj[3] = {nullptr, nullptr, nullptr};
+        if (GJ) for (int a = 0; a < 3; ++a) gj[a] = GJ + (n * 3 + a) * LC + l * C;
+        if (TG) {
+          const int64_t base = (l * N + n) * 8;
+          for (int k = 0; k < 8; ++k) {
+            rows[base + k] = c.rows[k];
+            scalar_t* v = contrib.get() + (base + k) * C;
+            for (int64_t ch = 0; ch < C; ++ch) {
+              v[ch] = c.w[k] * go[ch];
+              if (GJ) v[ch] += c.scale * (c.dw[0][k] * gj[0][ch] + c.dw[1][k] * gj[1][ch] + c.dw[2][k] * gj[2][ch]);
             }
           }
-          if (GX) cell_grad_x<scalar_t, CC>(c, T, go, gj, C, gf_total);
         }
-        if (GX) for (int b = 0; b < 3; ++b) GX[3 * n + b] = gf_total[b];
+        if (GX) cell_grad_x<scalar_t, CC>(c, T, go, gj, C, gf_total);
       }
+      if (GX) for (int b = 0; b < 3; ++b) GX[3 * n + b] = gf_total[b];
     }
   });
   if (!TG) return;

@@ -54,9 +54,9 @@ def test_dense_kernel_equals_reference(with_jac):
 
 @pytest.mark.parametrize("channels", [1, 2, 4, 32])
 @pytest.mark.parametrize("n", [1, 7, 37])
-def test_every_channel_count_and_block_tail_equals_reference(channels, n):
-    # The kernel has compile-time paths for 2, 4 and 32 channels and takes points in blocks of 8:
-    # every path and a block's tail must give the reference's values and gradients.
+def test_every_channel_count_equals_reference(channels, n):
+    # The kernel has compile-time paths for 2, 4 and 32 channels and a run-time one for others:
+    # every path must give the reference's values and gradients, for one point and for several.
     torch.manual_seed(channels)
     d = DenseGrids([4, 7], channels).double()
     with torch.no_grad():
