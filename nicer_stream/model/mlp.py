@@ -8,6 +8,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from nicer_stream.model.linear import Linear
 from nicer_stream.model.softplus import SOFTPLUS_BETA as _SOFTPLUS_BETA, softplus_beta
 from nicer_stream.model.sdf_grad_mlp import FusedSdfGradMLP
 
@@ -18,7 +19,7 @@ class GeometryMLP(nn.Module):
     def __init__(self, in_dim: int, hidden: int, n_hidden: int, out_dim: int, last_std: float = 1e-4) -> None:
         super().__init__()
         dims = [in_dim] + [hidden] * n_hidden + [out_dim]
-        self.layers = nn.ModuleList(nn.Linear(a, b) for a, b in zip(dims[:-1], dims[1:]))
+        self.layers = nn.ModuleList(Linear(a, b) for a, b in zip(dims[:-1], dims[1:]))
         nn.init.normal_(self.layers[-1].weight, std=last_std)
         nn.init.zeros_(self.layers[-1].bias)
 
@@ -41,7 +42,7 @@ class GeometryMLP(nn.Module):
     def reference_forward(self, h: torch.Tensor, tangent: torch.Tensor | None = None):
         """The same function through autograd over plain ops (the tests' reference)."""
         for i, layer in enumerate(self.layers):
-            h = layer(h)
+            h = F.linear(h, layer.weight, layer.bias)
             if tangent is not None:
                 tangent = tangent @ layer.weight.t()
             if i < len(self.layers) - 1:
@@ -58,6 +59,6 @@ def plain_mlp(in_dim: int, hidden: int, n_hidden: int, out_dim: int) -> nn.Seque
     dims = [in_dim] + [hidden] * n_hidden
     mods: list[nn.Module] = []
     for a, b in zip(dims[:-1], dims[1:]):
-        mods += [nn.Linear(a, b), nn.ReLU(inplace=True)]
-    mods.append(nn.Linear(dims[-1], out_dim))
+        mods += [Linear(a, b), nn.ReLU(inplace=True)]
+    mods.append(Linear(dims[-1], out_dim))
     return nn.Sequential(*mods)

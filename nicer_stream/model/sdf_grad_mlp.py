@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import torch
 
+from nicer_stream.model.linear import linear, matmul
 from nicer_stream.model.softplus import softplus_and_sigmoid, sweep_adjoint
 
 
@@ -35,11 +36,11 @@ class FusedSdfGradMLP(torch.autograd.Function):
         hs, ss = [h], []
         x = h
         for w, b in zip(weights[:-1], biases[:-1]):
-            z = torch.addmm(b, x, w.t())
+            z = linear(x, w, b)
             x, s = softplus_and_sigmoid(z)
             ss.append(s)
             hs.append(x)
-        out = torch.addmm(biases[-1], x, weights[-1].t())
+        out = linear(x, weights[-1], biases[-1])
         # Reverse sweep for d out_0 / d h_i: u_{n-1} is the last layer's first row.
         vs, us = [None] * (n - 1), [None] * n
         u = weights[-1][0].expand(h.shape[0], -1)
@@ -47,7 +48,7 @@ class FusedSdfGradMLP(torch.autograd.Function):
         for i in range(n - 2, -1, -1):
             v = u * ss[i]
             vs[i] = v
-            u = v @ weights[i]
+            u = matmul(v, weights[i])
             us[i] = u
         grad = torch.bmm(jac, u.unsqueeze(-1)).squeeze(-1)
         ctx.n = n
@@ -74,7 +75,7 @@ class FusedSdfGradMLP(torch.autograd.Function):
             g_jac = g_grad[:, :, None] * us[0][:, None, :]
             ubar = torch.bmm(g_grad.unsqueeze(1), jac).squeeze(1)
             for i in range(n - 1):
-                vbar = ubar @ weights[i].t()
+                vbar = linear(ubar, weights[i])
                 if need_params:
                     grads_w[i].addmm_(vs[i].t(), ubar)
                 ubar, zbar_u[i] = sweep_adjoint(vbar, us[i + 1], ss[i])
@@ -95,7 +96,7 @@ class FusedSdfGradMLP(torch.autograd.Function):
             if need_params:
                 grads_w[i].addmm_(zbar.t(), hs[i])
                 grads_b[i] = zbar.sum(0)
-            hbar = zbar @ weights[i] if (i > 0 or ctx.needs_input_grad[0]) else None
+            hbar = matmul(zbar, weights[i]) if (i > 0 or ctx.needs_input_grad[0]) else None
         if need_params:
             grads_b = [g if g is not None else torch.zeros_like(w[:, 0]) for g, w in zip(grads_b, weights)]
         params = [p for pair in zip(grads_w, grads_b) for p in pair]
