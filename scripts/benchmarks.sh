@@ -88,13 +88,13 @@ case "${1:-all}" in
              wt=$(realpath "$OUT")/base_worktree
              [ -e "$wt/.git" ] && PYTHONPATH=$wt .venv/bin/python scripts/iter_bench.py --presets fast --iters 10
              .venv/bin/python scripts/iter_bench.py --presets fast,paper --iters 10 --profile ;;
-  ab)        # BASE's code (default HEAD~1, a worktree in OUTROOT/ab_worktree) and this tree alternated twice:
+  ab)        # BASE's code (default HEAD~1, a worktree in OUTROOT/ab_worktree) and this tree alternated ROUNDS (2) times:
              # per-iteration costs at fast sizes, then one render and the mesh of RUN (a finished run's OUT)
              base=$(git rev-parse --verify "${BASE:-HEAD~1}^{commit}") && mkdir -p "$OUT" && wt=$(realpath "$OUT")/ab_worktree root=$PWD
              [ -e "$wt/.git" ] || git worktree add -q --detach "$wt" "$base"
              git -C "$wt" checkout -q --detach "$base"
              ln -sfn "$(realpath ../shared)" "$(dirname "$wt")/shared"  # the scripts' ../shared/data from the worktree
-             for round in 1 2; do
+             for round in $(seq "${ROUNDS:-2}"); do
                for tree in "$wt" "$PWD"; do
                  echo "== round $round: $(git -C "$tree" rev-parse --short HEAD)$([ "$tree" = "$PWD" ] && [ -n "$(git status --porcelain)" ] && echo +edits)"
                  kernel_cache "$tree"

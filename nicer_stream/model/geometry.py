@@ -9,7 +9,7 @@ from torch import nn
 from nicer_stream.config import ModelConfig
 from nicer_stream.model.dense_grid import DenseGrids, geometric_resolutions
 from nicer_stream.model.mlp import GeometryMLP
-from nicer_stream.model.positional import encoding_dim, positional_encoding
+from nicer_stream.model.positional import encoding_dim, encoding_grad, positional_encoding
 
 
 @dataclass
@@ -61,26 +61,39 @@ class GeometryField(nn.Module):
         self.sphere_radius.fill_(radius)
 
     def forward(self, x: torch.Tensor, use_fine: bool = True, with_grad: bool = False) -> GeometrySample:
-        """x (N, 3) normalised coordinates."""
-        tan = with_grad
-        pe = positional_encoding(x, self.cfg.pe_levels, with_tangent=tan)
-        pe, pe_j = (pe if tan else (pe, None))
-        gc, gc_j = self.coarse_grid(x, with_tangent=tan)
+        """x (N, 3) normalised coordinates.
+
+        With `with_grad`, each MLP returns u = d s / d(its input) and the spatial gradient is
+        J u, contracted part by part: the positional encoding's analytically (`encoding_grad`,
+        shared by both MLPs since it is linear in u), the grids' with their Jacobians."""
+        pe = positional_encoding(x, self.cfg.pe_levels)
+        p = pe.shape[1]
+        gc, gc_j = self.coarse_grid(x, with_tangent=with_grad)
         h = torch.cat([pe, gc], dim=-1)
-        hj = torch.cat([pe_j, gc_j], dim=-1) if tan else None
-        out, out_g = self.coarse_mlp.value_and_grad0(h, hj) if tan else (self.coarse_mlp(h), None)
+        out, u = self.coarse_mlp.value_and_input_grad(h) if with_grad else (self.coarse_mlp(h), None)
         xc = x - self.sphere_centre
         r = xc.norm(dim=-1).clamp_min(1e-9)
         sdf = self.sphere_radius - r + out[:, 0]
-        grad = (-xc / r[:, None] + out_g) if tan else None
         z_coarse = out[:, 1:]
         z_fine = torch.zeros_like(z_coarse)
+        if with_grad:
+            u_pe = u[:, :p]
+            grad = -xc / r[:, None] + _contract(gc_j, u[:, p:])
         if use_fine:
-            gf, gf_j = self.fine_grid(x, with_tangent=tan)
+            gf, gf_j = self.fine_grid(x, with_tangent=with_grad)
             hf = torch.cat([pe, gf], -1)
-            fo, fo_g = self.fine_mlp.value_and_grad0(hf, torch.cat([pe_j, gf_j], -1)) if tan else (self.fine_mlp(hf), None)
+            fo, uf = self.fine_mlp.value_and_input_grad(hf) if with_grad else (self.fine_mlp(hf), None)
             sdf = sdf + fo[:, 0]
-            if tan:
-                grad = grad + fo_g
+            if with_grad:
+                u_pe = u_pe + uf[:, :p]
+                grad = grad + _contract(gf_j, uf[:, p:])
             z_fine = fo[:, 1:]
-        return GeometrySample(sdf, grad, z_coarse, z_fine)
+        if with_grad:
+            grad = grad + encoding_grad(pe, u_pe, self.cfg.pe_levels)
+        return GeometrySample(sdf, grad if with_grad else None, z_coarse, z_fine)
+
+
+def _contract(jac: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+    """jac (N, 3, F), u (N, F) -> jac u (N, 3). As a product and a sum: `bmm` over N tiny
+    matrices, with its backward, took 1.6-2x as long here."""
+    return (jac * u[:, None, :]).sum(-1)

@@ -31,13 +31,18 @@ class GeometryMLP(nn.Module):
                 h = softplus_beta(h)
         return h
 
-    def value_and_grad0(self, h: torch.Tensor, tangent: torch.Tensor):
-        """h (N, in), tangent (N, 3, in) -> out (N, out), the tangent of out[:, 0] only (N, 3).
+    def value_and_input_grad(self, h: torch.Tensor):
+        """h (N, in) -> out (N, out) and u = d out[:, 0] / d h (N, in), both differentiable.
 
-        Reverse mode in one fused node (`sdf_grad_mlp.py`): half the FLOPs of `forward`'s
-        three tangent rows when only the SDF's gradient is needed."""
+        Reverse mode in one fused node (`sdf_grad_mlp.py`): half the FLOPs of the three tangent
+        rows of `reference_forward`; the caller contracts u with its inputs' Jacobians."""
         params = [p for layer in self.layers for p in (layer.weight, layer.bias)]
-        return FusedSdfGradMLP.apply(h, tangent, len(self.layers), *params)
+        return FusedSdfGradMLP.apply(h, len(self.layers), *params)
+
+    def value_and_grad0(self, h: torch.Tensor, tangent: torch.Tensor):
+        """h (N, in), tangent (N, 3, in) -> out (N, out), the tangent of out[:, 0] only (N, 3)."""
+        out, u = self.value_and_input_grad(h)
+        return out, torch.bmm(tangent, u.unsqueeze(-1)).squeeze(-1)
 
     def reference_forward(self, h: torch.Tensor, tangent: torch.Tensor | None = None):
         """The same function through autograd over plain ops (the tests' reference)."""

@@ -29,3 +29,16 @@ def positional_encoding(x: torch.Tensor, levels: int, with_tangent: bool = False
     dc = (-s * freqs[:, None])[:, None, :, :] * eye[None, :, None, :]
     jac = torch.cat([eye.expand(n, d, d), ds.reshape(n, d, -1), dc.reshape(n, d, -1)], dim=-1)
     return enc, jac
+
+
+def encoding_grad(enc: torch.Tensor, u: torch.Tensor, levels: int, d: int = 3) -> torch.Tensor:
+    """J u for gamma's Jacobian J (N, d, E) at the points that gave `enc` (N, E), without forming J:
+    u (N, E) = d f / d gamma -> d f / d x (N, d) = u_x + sum_k 2^k pi (cos_k u_sin,k - sin_k u_cos,k).
+    Differentiable in `u` and (through `enc`) in x."""
+    n = enc.shape[0]
+    freqs = (2.0 ** torch.arange(levels, dtype=enc.dtype, device=enc.device)) * math.pi
+    s = enc[:, d:d + d * levels].reshape(n, levels, d)
+    c = enc[:, d + d * levels:].reshape(n, levels, d)
+    u_s = u[:, d:d + d * levels].reshape(n, levels, d)
+    u_c = u[:, d + d * levels:].reshape(n, levels, d)
+    return u[:, :d] + ((c * u_s - s * u_c) * freqs[:, None]).sum(1)

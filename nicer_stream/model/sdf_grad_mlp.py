@@ -1,20 +1,21 @@
-"""The SDF MLP's value and spatial gradient by reverse mode, forward and backward in one node.
+"""The SDF MLP's value and input gradient by reverse mode, forward and backward in one node.
 
 Forward mode (`GeometryMLP.reference_forward`) pushes three tangent rows through every layer,
 and its backward all four rows again: 12 row-products per layer. Only the tangent of output 0
-(the SDF) is ever used, so one reverse sweep gives it instead: u = d out_0 / d h, then
-grad = J u for the input Jacobian J (N, 3, in). The backward differentiates that sweep
-analytically: 6 row-products per layer (4 when the weights are frozen), half the FLOPs.
+(the SDF) is ever used, so one reverse sweep gives it instead: u = d out_0 / d h (N, in). The
+caller contracts u with its inputs' Jacobians (grad = J u), part by part and without
+materialising J (`GeometryField`). The backward differentiates the sweep analytically: 6
+row-products per layer (4 when the weights are frozen), half the FLOPs.
 
 Layers i = 0..n-1: z_i = h_i W_i^T + b_i, h_{i+1} = softplus_beta(z_i), s_i = sigmoid(beta z_i).
 Reverse sweep:  u_{n-1} = W_{n-1}[0],  v_i = u_{i+1} * s_i,  u_i = v_i W_i,  grad = J u_0.
-Its adjoint (bar = dL/d.), upwards from ubar_0 = J^T gbar:
+Its adjoint (bar = dL/d.), upwards from ubar_0 (the gradient arriving at u_0):
     vbar_i = ubar_i W_i^T,  Wbar_i += v_i^T ubar_i,  ubar_{i+1} = vbar_i * s_i,
     zbar_i += vbar_i * u_{i+1} * beta s_i (1 - s_i),  Wbar_{n-1}[0] += sum ubar_{n-1};
 then the value path downwards as usual (zbar_i += hbar_{i+1} * s_i).
 
-The reference is `GeometryMLP.reference_forward` (its tangent's column 0); tests compare values
-and gradients and run gradcheck in float64.
+The reference is `GeometryMLP.reference_forward` (its tangent's column 0, against J u_0); tests
+compare values and gradients and run gradcheck in float64.
 """
 from __future__ import annotations
 
@@ -25,13 +26,13 @@ from nicer_stream.model.softplus import softplus_and_sigmoid, sweep_adjoint
 
 
 class FusedSdfGradMLP(torch.autograd.Function):
-    """apply(h (N, in), J (N, 3, in), n_layers, W_0, b_0, ..., W_{n-1}, b_{n-1})
-    -> (out (N, o), grad (N, 3)) with grad = d out[:, 0] / dx = J (d out_0 / d h).
+    """apply(h (N, in), n_layers, W_0, b_0, ..., W_{n-1}, b_{n-1})
+    -> (out (N, o), u (N, in)) with u = d out[:, 0] / d h.
 
     Softplus(beta) between layers, none after the last."""
 
     @staticmethod
-    def forward(ctx, h: torch.Tensor, jac: torch.Tensor, n: int, *params: torch.Tensor):
+    def forward(ctx, h: torch.Tensor, n: int, *params: torch.Tensor):
         weights, biases = params[0::2], params[1::2]
         hs, ss = [h], []
         x = h
@@ -50,30 +51,25 @@ class FusedSdfGradMLP(torch.autograd.Function):
             vs[i] = v
             u = matmul(v, weights[i])
             us[i] = u
-        grad = torch.bmm(jac, u.unsqueeze(-1)).squeeze(-1)
         ctx.n = n
-        ctx.save_for_backward(jac, *hs, *ss, *vs, *us, *weights)
-        return out, grad
+        ctx.save_for_backward(*hs, *ss, *vs, *us, *weights)
+        return out, u
 
     @staticmethod
-    def backward(ctx, g_out: torch.Tensor, g_grad: torch.Tensor):
+    def backward(ctx, g_out: torch.Tensor, g_u: torch.Tensor):
         n = ctx.n
         saved = ctx.saved_tensors
-        jac = saved[0]
-        hs = saved[1:n + 1]
-        ss = saved[n + 1:2 * n]
-        vs = saved[2 * n:3 * n - 1]
-        us = saved[3 * n - 1:4 * n - 1]
-        weights = saved[4 * n - 1:]
-        need_params = any(ctx.needs_input_grad[3:])
+        hs = saved[:n]
+        ss = saved[n:2 * n - 1]
+        vs = saved[2 * n - 1:3 * n - 2]
+        us = saved[3 * n - 2:4 * n - 2]
+        weights = saved[4 * n - 2:]
+        need_params = any(ctx.needs_input_grad[2:])
         grads_w = [torch.zeros_like(w) for w in weights] if need_params else [None] * n
         grads_b = [None] * n
         zbar_u: list[torch.Tensor | None] = [None] * (n - 1)
-        g_jac = None
-        if g_grad is not None:
-            # grad = J u_0: both factors get a share.
-            g_jac = g_grad[:, :, None] * us[0][:, None, :]
-            ubar = torch.bmm(g_grad.unsqueeze(1), jac).squeeze(1)
+        if g_u is not None:
+            ubar = g_u
             for i in range(n - 1):
                 vbar = linear(ubar, weights[i])
                 if need_params:
@@ -100,5 +96,5 @@ class FusedSdfGradMLP(torch.autograd.Function):
         if need_params:
             grads_b = [g if g is not None else torch.zeros_like(w[:, 0]) for g, w in zip(grads_b, weights)]
         params = [p for pair in zip(grads_w, grads_b) for p in pair]
-        return (hbar, g_jac, None, *params)
+        return (hbar, None, *params)
 

@@ -62,6 +62,29 @@ def test_grad_is_differentiable_wrt_parameters():
     assert geo.fine_grid.table.grad.abs().sum() > 0
 
 
+def test_grad_is_differentiable_wrt_points_and_parameters_against_second_order_autograd(monkeypatch):
+    """The tracker's and BA's path: d(loss of the normals)/dx and /dparams through the
+    part-by-part contraction, against autograd's double backward over the plain value (the
+    pure-torch grids: the compiled kernel's backward is first-order only)."""
+    geo = _perturbed()
+    x0 = _points(6, seed=4, dtype=torch.float64)
+    w = torch.randn(6, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(5))
+    got, ref = [], []
+    for analytic in (True, False):
+        geo.zero_grad()
+        x = x0.clone().requires_grad_(True)
+        if analytic:
+            g = geo(x, with_grad=True).grad
+        else:
+            monkeypatch.setenv("NICER_STREAM_KERNELS", "0")
+            (g,) = torch.autograd.grad(geo(x).sdf.sum(), x, create_graph=True)
+        (g * w).sum().backward()
+        (got if analytic else ref).append(x.grad.clone())
+        (got if analytic else ref).extend(torch.zeros_like(p) if p.grad is None else p.grad.clone() for p in geo.parameters())
+    for a, b in zip(got, ref):
+        assert torch.allclose(a, b, atol=1e-8), (a - b).abs().max()
+
+
 def test_use_fine_false_ignores_fine_grid():
     geo = _perturbed()
     x = _points(32, seed=3, dtype=torch.float64)

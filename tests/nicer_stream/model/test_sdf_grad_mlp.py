@@ -1,4 +1,5 @@
-"""The reverse-mode SDF-gradient node against autograd over the reference (forward-mode) ops."""
+"""The reverse-mode SDF-gradient node (its u contracted with a tangent, J u) against autograd over
+the reference (forward-mode) ops."""
 import pytest
 import torch
 
@@ -44,6 +45,8 @@ def test_values_and_gradients_equal_the_forward_mode_reference(n_hidden, used):
     fused = _run(mlp.value_and_grad0, mlp, h, t, g_out, g_grad)
     ref = _run(reference, mlp, h, t, g_out, g_grad)
     for a, b in zip(fused, ref):
+        if a is None and b is None:
+            continue
         a = torch.zeros_like(b) if a is None else a
         b = torch.zeros_like(a) if b is None else b
         assert torch.allclose(a, b, atol=1e-10, rtol=1e-8)
@@ -52,9 +55,9 @@ def test_values_and_gradients_equal_the_forward_mode_reference(n_hidden, used):
 def test_gradcheck_float64():
     torch.manual_seed(0)
     mlp = GeometryMLP(4, 6, 2, 3, last_std=0.5).double()
-    h, t = _inputs(n=4, d=4)
+    h, _ = _inputs(n=4, d=4)
     params = [p for layer in mlp.layers for p in (layer.weight, layer.bias)]
-    assert torch.autograd.gradcheck(lambda h, t, *p: FusedSdfGradMLP.apply(h, t, 3, *p), (h, t, *params))
+    assert torch.autograd.gradcheck(lambda h, *p: FusedSdfGradMLP.apply(h, 3, *p), (h, *params))
 
 
 def test_frozen_weights_get_no_gradient_and_inputs_still_do():
