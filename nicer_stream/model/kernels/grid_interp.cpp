@@ -7,7 +7,6 @@
 #include <torch/extension.h>
 #include <algorithm>
 #include <type_traits>
-#include <memory>
 #include <vector>
 #include <cmath>
 
@@ -158,68 +157,90 @@ inline void cell_grad_x(const Cell<scalar_t>& c, const scalar_t* T, const scalar
   for (int b = 0; b < 3; ++b) gf_total[b] += c.inside[b] ? gf[b] * c.scale : 0;
 }
 
+// The table's gradient, level by level: each (point, level) cell's 8 rows get
+// w_k g_out + scale (dw_k . g_jac) added, in point order. The rows are random, so the cell of
+// the point `kAhead` places on is computed first and its rows prefetched for writing (a ring of
+// cells). Threads own whole levels (interleaved, so that the large fine levels are shared out),
+// or, with fewer levels than threads, the rows with row mod T == t (T a power of two).
+// Deterministic for a given thread count, without atomics: every row is updated by one thread.
+// (Until stop 28 this was a second pass over a buffer of all (point, level, corner) rows and
+// contributions that a first pass had written: 25 MB per call for the fine grid.)
 template <typename scalar_t, int CC>
-void backward_impl(const scalar_t* T, const scalar_t* X, const scalar_t* GO, const scalar_t* GJ,
-                   scalar_t* TG, scalar_t* GX, const std::vector<Level>& lv, int64_t N, int64_t C_rt) {
+void scatter_table(const scalar_t* X, const scalar_t* GO, const scalar_t* GJ, scalar_t* TG,
+                   const std::vector<Level>& lv, int64_t N, int64_t C_rt) {
   const int64_t C = CC > 0 ? CC : C_rt, L = lv.size(), LC = L * C;
-  // Pass 1 (parallel over points): each (level, point, corner)'s row and table gradient,
-  // level-major, and the points' gradients. Pass 2 adds the table gradients in point order:
-  // one thread per level when there are enough levels (a level's rows then stay in that
-  // core's cache), else thread t takes the rows with row mod T == t (T a power of two).
-  // Deterministic for a given thread count, without atomics: every row is updated by one thread.
-  const int64_t M = TG ? N * L * 8 : 0;
-  std::unique_ptr<int64_t[]> rows(new int64_t[M]);  // uninitialised: every entry is written
-  std::unique_ptr<scalar_t[]> contrib(new scalar_t[M * C]);
-  at::parallel_for(0, N, 256, [&](int64_t begin, int64_t end) {
-    std::vector<Cell<scalar_t>> cells(L);
-    for (int64_t n = begin; n < end; ++n) {
-      point_cells(X, lv, n, cells.data(), GX ? T : nullptr, C);
-      scalar_t gf_total[3] = {0, 0, 0};
-      for (int64_t l = 0; l < L; ++l) {
-        const Cell<scalar_t>& c = cells[l];
-        const scalar_t* go = GO + n * LC + l * C;
-        const scalar_t* gj[3] = {nullptr, nullptr, nullptr};
-        if (GJ) for (int a = 0; a < 3; ++a) gj[a] = GJ + (n * 3 + a) * LC + l * C;
-        if (TG) {
-          const int64_t base = (l * N + n) * 8;
-          for (int k = 0; k < 8; ++k) {
-            rows[base + k] = c.rows[k];
-            scalar_t* v = contrib.get() + (base + k) * C;
-            for (int64_t ch = 0; ch < C; ++ch) {
-              v[ch] = c.w[k] * go[ch];
-              if (GJ) v[ch] += c.scale * (c.dw[0][k] * gj[0][ch] + c.dw[1][k] * gj[1][ch] + c.dw[2][k] * gj[2][ch]);
-            }
-          }
-        }
-        if (GX) cell_grad_x<scalar_t, CC>(c, T, go, gj, C, gf_total);
-      }
-      if (GX) for (int b = 0; b < 3; ++b) GX[3 * n + b] = gf_total[b];
+  constexpr int64_t kAhead = 8;
+  auto run = [&](int64_t l, int64_t mask, int64_t owner) {
+    const Level& lev = lv[l];
+    Cell<scalar_t> ring[kAhead];
+    for (int64_t n = 0; n < std::min(kAhead, N); ++n) {
+      make_cell(X + 3 * n, lev, ring[n]);
+      for (int k = 0; k < 8; ++k) __builtin_prefetch(TG + ring[n].rows[k] * C, 1);
     }
-  });
-  if (!TG) return;
-  constexpr int64_t ahead = 16;  // rows are random: request the row `ahead` entries on early
-  auto add_range = [&](int64_t from, int64_t to, int64_t mask, int64_t owner) {
-    for (int64_t m = from; m < to; ++m) {
-      if (m + ahead < to) __builtin_prefetch(TG + rows[m + ahead] * C, 1);
-      const int64_t row = rows[m];
-      if ((row & mask) != owner) continue;
-      scalar_t* tg = TG + row * C;
-      const scalar_t* v = contrib.get() + m * C;
-      for (int64_t ch = 0; ch < C; ++ch) tg[ch] += v[ch];
+    for (int64_t n = 0; n < N; ++n) {
+      const Cell<scalar_t> c = ring[n % kAhead];
+      if (n + kAhead < N) {
+        Cell<scalar_t>& next = ring[n % kAhead];
+        make_cell(X + 3 * (n + kAhead), lev, next);
+        for (int k = 0; k < 8; ++k) __builtin_prefetch(TG + next.rows[k] * C, 1);
+      }
+      const scalar_t* go = GO + n * LC + l * C;
+      const scalar_t* gj[3] = {nullptr, nullptr, nullptr};
+      if (GJ) for (int a = 0; a < 3; ++a) gj[a] = GJ + (n * 3 + a) * LC + l * C;
+      for (int k = 0; k < 8; ++k) {
+        const int64_t row = c.rows[k];
+        if ((row & mask) != owner) continue;
+        scalar_t* tg = TG + row * C;
+        for (int64_t ch = 0; ch < C; ++ch) {
+          scalar_t v = c.w[k] * go[ch];
+          if (GJ) v += c.scale * (c.dw[0][k] * gj[0][ch] + c.dw[1][k] * gj[1][ch] + c.dw[2][k] * gj[2][ch]);
+          tg[ch] += v;
+        }
+      }
     }
   };
   const int64_t threads = std::max<int64_t>(1, std::min<int64_t>(at::get_num_threads(), N / 1024 + 1));
   if (L >= threads) {
-    at::parallel_for(0, L, 1, [&](int64_t first, int64_t last) {
-      for (int64_t l = first; l < last; ++l) add_range(l * N * 8, (l + 1) * N * 8, 0, 0);
+    at::parallel_for(0, threads, 1, [&](int64_t first, int64_t last) {
+      for (int64_t t = first; t < last; ++t)
+        for (int64_t l = t; l < L; l += threads) run(l, 0, 0);
     });
   } else {
     int64_t n_owner = 1;
     while (n_owner * 2 <= threads) n_owner *= 2;
     at::parallel_for(0, n_owner, 1, [&](int64_t first, int64_t last) {
-      for (int64_t owner = first; owner < last; ++owner) add_range(0, M, n_owner - 1, owner);
+      for (int64_t owner = first; owner < last; ++owner)
+        for (int64_t l = 0; l < L; ++l) run(l, n_owner - 1, owner);
     });
   }
+}
+
+// The points' gradients (parallel over points; rows prefetched as in the forward).
+template <typename scalar_t, int CC>
+void grad_points(const scalar_t* T, const scalar_t* X, const scalar_t* GO, const scalar_t* GJ,
+                 scalar_t* GX, const std::vector<Level>& lv, int64_t N, int64_t C_rt) {
+  const int64_t C = CC > 0 ? CC : C_rt, L = lv.size(), LC = L * C;
+  at::parallel_for(0, N, 256, [&](int64_t begin, int64_t end) {
+    std::vector<Cell<scalar_t>> cells(L);
+    for (int64_t n = begin; n < end; ++n) {
+      point_cells(X, lv, n, cells.data(), T, C);
+      scalar_t gf_total[3] = {0, 0, 0};
+      for (int64_t l = 0; l < L; ++l) {
+        const scalar_t* go = GO + n * LC + l * C;
+        const scalar_t* gj[3] = {nullptr, nullptr, nullptr};
+        if (GJ) for (int a = 0; a < 3; ++a) gj[a] = GJ + (n * 3 + a) * LC + l * C;
+        cell_grad_x<scalar_t, CC>(cells[l], T, go, gj, C, gf_total);
+      }
+      for (int b = 0; b < 3; ++b) GX[3 * n + b] = gf_total[b];
+    }
+  });
+}
+
+template <typename scalar_t, int CC>
+void backward_impl(const scalar_t* T, const scalar_t* X, const scalar_t* GO, const scalar_t* GJ,
+                   scalar_t* TG, scalar_t* GX, const std::vector<Level>& lv, int64_t N, int64_t C_rt) {
+  if (GX) grad_points<scalar_t, CC>(T, X, GO, GJ, GX, lv, N, C_rt);
+  if (TG) scatter_table<scalar_t, CC>(X, GO, GJ, TG, lv, N, C_rt);
 }
 
 // Calls f<CC>() with the compile-time channel count for the model's tables, else CC = 0.
