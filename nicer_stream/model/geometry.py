@@ -60,6 +60,18 @@ class GeometryField(nn.Module):
         self.sphere_centre.copy_(centre)
         self.sphere_radius.fill_(radius)
 
+    def sdf(self, x: torch.Tensor, use_fine: bool = True) -> torch.Tensor:
+        """The SDF alone (N,) at normalised points x (N, 3): `forward(x).sdf` without computing
+        the features (probes, meshing)."""
+        pe = positional_encoding(x, self.cfg.pe_levels)
+        gc, _ = self.coarse_grid(x)
+        xc = x - self.sphere_centre
+        sdf = self.sphere_radius - xc.norm(dim=-1).clamp_min(1e-9) + self.coarse_mlp(torch.cat([pe, gc], -1), 1)[:, 0]
+        if use_fine:
+            gf, _ = self.fine_grid(x)
+            sdf = sdf + self.fine_mlp(torch.cat([pe, gf], -1), 1)[:, 0]
+        return sdf
+
     def forward(self, x: torch.Tensor, use_fine: bool = True, with_grad: bool = False) -> GeometrySample:
         """x (N, 3) normalised coordinates.
 

@@ -8,7 +8,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from nicer_stream.model.linear import Linear
+from nicer_stream.model.linear import Linear, linear
 from nicer_stream.model.softplus import SOFTPLUS_BETA as _SOFTPLUS_BETA, softplus_beta
 from nicer_stream.model.sdf_grad_mlp import FusedSdfGradMLP
 
@@ -23,13 +23,17 @@ class GeometryMLP(nn.Module):
         nn.init.normal_(self.layers[-1].weight, std=last_std)
         nn.init.zeros_(self.layers[-1].bias)
 
-    def forward(self, h: torch.Tensor) -> torch.Tensor:
-        """h (N, in) -> (N, out), no spatial gradient (probes, meshing)."""
-        for i, layer in enumerate(self.layers):
-            h = layer(h)
-            if i < len(self.layers) - 1:
-                h = softplus_beta(h)
-        return h
+    def forward(self, h: torch.Tensor, n_out: int | None = None) -> torch.Tensor:
+        """h (N, in) -> (N, out), or its first `n_out` columns only (the SDF alone: probes and
+        meshing skip the features' rows of the last layer); no spatial gradient."""
+        for layer in self.layers[:-1]:
+            h = softplus_beta(layer(h))
+        last = self.layers[-1]
+        if n_out is None:
+            return last(h)
+        # Sliced weights: through autograd's F.linear when a graph may be needed.
+        fn = F.linear if torch.is_grad_enabled() else linear
+        return fn(h, last.weight[:n_out], last.bias[:n_out])
 
     def value_and_input_grad(self, h: torch.Tensor):
         """h (N, in) -> out (N, out) and u = d out[:, 0] / d h (N, in), both differentiable.

@@ -60,7 +60,7 @@ class SceneModel(nn.Module):
     @torch.no_grad()
     def sdf_world(self, x_world: torch.Tensor, use_fine: bool = True) -> torch.Tensor:
         """(N, 3) world -> (N,) SDF in metres."""
-        return self.geometry(self.bound.normalise(x_world), use_fine=use_fine).sdf * self.bound.half_extent
+        return self.geometry.sdf(self.bound.normalise(x_world), use_fine=use_fine) * self.bound.half_extent
 
     @torch.no_grad()
     def color_world(self, x_world: torch.Tensor, normal: torch.Tensor, use_fine: bool = True) -> torch.Tensor:

@@ -118,8 +118,8 @@ PROBE_CHUNK = 1 << 17
 def probe_sdf(model: SceneModel, x: torch.Tensor, use_fine: bool, chunk: int = PROBE_CHUNK) -> torch.Tensor:
     """SDF (N,) at normalised points x (N, 3), without gradient, `chunk` points at a time."""
     if x.shape[0] <= chunk:
-        return model.geometry(x, use_fine=use_fine).sdf
-    return torch.cat([model.geometry(x[i:i + chunk], use_fine=use_fine).sdf for i in range(0, x.shape[0], chunk)])
+        return model.geometry.sdf(x, use_fine=use_fine)
+    return torch.cat([model.geometry.sdf(x[i:i + chunk], use_fine=use_fine) for i in range(0, x.shape[0], chunk)])
 
 
 def rays_for_pixels(uv: torch.Tensor, intr: Intrinsics, T_world_cam: torch.Tensor) -> RayBatch:

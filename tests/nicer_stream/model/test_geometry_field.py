@@ -123,3 +123,15 @@ def test_grad_equals_autograd_with_a_moved_sphere():
     xr = x.clone().requires_grad_(True)
     (g,) = torch.autograd.grad(geo(xr).sdf.sum(), xr)
     assert torch.allclose(s.grad, g, atol=1e-9), (s.grad - g).abs().max()
+
+
+def test_sdf_alone_equals_the_forward_value():
+    geo = _perturbed()
+    x = _points(50, seed=6, dtype=torch.float64)
+    for fine in (False, True):
+        with torch.no_grad():
+            assert torch.allclose(geo.sdf(x, use_fine=fine), geo(x, use_fine=fine).sdf, rtol=0, atol=1e-12)
+    geo32 = _perturbed().float()
+    with torch.no_grad():
+        a, b = geo32.sdf(x.float()), geo32(x.float()).sdf
+    assert torch.allclose(a, b, rtol=0, atol=1e-5 * float(b.abs().max()))

@@ -197,6 +197,7 @@ def test_probe_sdf_in_chunks_equals_one_pass():
     model = _model()
     x = torch.rand(1000, 3) * 2 - 1
     with torch.no_grad():
-        whole = model.geometry(x).sdf
+        whole = model.geometry.sdf(x)
         assert torch.allclose(probe_sdf(model, x, True, chunk=64), whole, atol=1e-6)
         assert torch.equal(probe_sdf(model, x, True), whole)  # one chunk: the same call
+        assert torch.allclose(whole, model.geometry(x).sdf, atol=1e-6)  # the SDF alone: the same value
