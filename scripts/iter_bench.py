@@ -114,13 +114,31 @@ def bench(name: str, iters: int, profile: bool) -> dict:
     return {"preset": name, "map_s": map_s, "track_s": track_s, "map_gflop": m_flop / 1e9, "track_gflop": t_flop / 1e9}
 
 
+def run_conditions() -> list[str]:
+    """The process settings a SLAM run makes (where this tree has them)."""
+    done = []
+    try:
+        from nicer_stream.runtime.allocator import retain_freed_memory
+        if retain_freed_memory():
+            done.append("freed memory retained")
+    except ImportError:
+        pass
+    try:
+        from nicer_stream.runtime.matmul_backend import enable_onednn_matmul
+        if enable_onednn_matmul():
+            done.append("oneDNN matmuls")
+    except ImportError:
+        pass
+    return done
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--presets", default="fast,paper")
     ap.add_argument("--iters", type=int, default=5)
     ap.add_argument("--profile", action="store_true")
     a = ap.parse_args()
-    print(f"torch {torch.__version__}, threads {torch.get_num_threads()}", flush=True)
+    print(f"torch {torch.__version__}, threads {torch.get_num_threads()}; {', '.join(run_conditions()) or 'default settings'}", flush=True)
     rows = [bench(p, a.iters if p == "fast" else max(1, a.iters // 5), a.profile) for p in a.presets.split(",")]
     peak = sgemm_gflops()
     print(f"\nsgemm 2048^3: {peak:.1f} GFLOP/s")

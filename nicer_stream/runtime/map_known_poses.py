@@ -16,6 +16,7 @@ from nicer_stream.mapping.prior_alignment import align_to_widest_partner
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.runtime.allocator import retain_freed_memory
+from nicer_stream.runtime.matmul_backend import enable_onednn_matmul
 from nicer_stream.io.scene_file import save_scene
 from nicer_stream.model.bound import SceneBound, bound_from_points
 from nicer_stream.model.bound_estimate import bound_from_cameras, bound_from_config, metric_points
@@ -99,6 +100,7 @@ def run_map(req: MapRequest) -> Path:
     timer = StageTimer()
     torch.manual_seed(cfg.seed)
     retain_freed_memory()
+    enable_onednn_matmul()
     source, _ = open_configured(req.source, req.source_opts, cfg)
     frames = list(source)
     if not frames:

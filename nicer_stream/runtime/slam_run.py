@@ -13,6 +13,7 @@ import torch
 from nicer_stream import config as config_mod
 from nicer_stream.errors import UserError, one_line
 from nicer_stream.runtime.allocator import retain_freed_memory
+from nicer_stream.runtime.matmul_backend import enable_onednn_matmul
 from nicer_stream.io.scene_file import save_scene
 from nicer_stream.runtime.frame_priors import make_engine, provider_names
 from nicer_stream.runtime.live_outputs import MESH_RESOLUTION, LiveMapOutputs, coarse_mesh
@@ -106,6 +107,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     cfg = config_mod.load(req.preset, req.config_file)
     torch.manual_seed(cfg.seed)
     retain_freed_memory()
+    enable_onednn_matmul()
     timer = StageTimer()
     all_threads = torch.get_num_threads()
     track_threads, map_threads = split_threads()
