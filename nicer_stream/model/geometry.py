@@ -60,13 +60,19 @@ class GeometryField(nn.Module):
         self.sphere_centre.copy_(centre)
         self.sphere_radius.fill_(radius)
 
+    def _sphere(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The initial sphere's SDF (N,) at normalised points x (N, 3), with x - centre (N, 3) and
+        its norm r (N,) (the sphere's gradient is -(x - centre) / r)."""
+        xc = x - self.sphere_centre
+        r = xc.norm(dim=-1).clamp_min(1e-9)
+        return self.sphere_radius - r, xc, r
+
     def sdf(self, x: torch.Tensor, use_fine: bool = True) -> torch.Tensor:
         """The SDF alone (N,) at normalised points x (N, 3): `forward(x).sdf` without computing
         the features (probes, meshing)."""
         pe = positional_encoding(x, self.cfg.pe_levels)
         gc, _ = self.coarse_grid(x)
-        xc = x - self.sphere_centre
-        sdf = self.sphere_radius - xc.norm(dim=-1).clamp_min(1e-9) + self.coarse_mlp(torch.cat([pe, gc], -1), 1)[:, 0]
+        sdf = self._sphere(x)[0] + self.coarse_mlp(torch.cat([pe, gc], -1), 1)[:, 0]
         if use_fine:
             gf, _ = self.fine_grid(x)
             sdf = sdf + self.fine_mlp(torch.cat([pe, gf], -1), 1)[:, 0]
@@ -83,9 +89,8 @@ class GeometryField(nn.Module):
         gc, gc_j = self.coarse_grid(x, with_tangent=with_grad)
         h = torch.cat([pe, gc], dim=-1)
         out, u = self.coarse_mlp.value_and_input_grad(h) if with_grad else (self.coarse_mlp(h), None)
-        xc = x - self.sphere_centre
-        r = xc.norm(dim=-1).clamp_min(1e-9)
-        sdf = self.sphere_radius - r + out[:, 0]
+        sdf, xc, r = self._sphere(x)
+        sdf = sdf + out[:, 0]
         z_coarse = out[:, 1:]
         z_fine = torch.zeros_like(z_coarse)
         if with_grad:

@@ -72,9 +72,11 @@ class LinearFunction(torch.autograd.Function):
 class Linear(nn.Linear):
     """`nn.Linear` (same parameters and state-dict keys) whose product goes through `linear`."""
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, rows: int | None = None) -> torch.Tensor:
+        """x (N, I) -> (N, O), or only the first `rows` outputs (the weight's first rows)."""
+        w, b = (self.weight, self.bias) if rows is None else (self.weight[:rows], self.bias[:rows])
         if x.dim() != 2 or not onednn_available(x):
-            return super().forward(x)
-        if torch.is_grad_enabled() and (x.requires_grad or self.weight.requires_grad):
-            return LinearFunction.apply(x, self.weight, self.bias)
-        return linear(x, self.weight, self.bias)
+            return linear_reference(x, w, b)
+        if torch.is_grad_enabled() and (x.requires_grad or w.requires_grad):
+            return LinearFunction.apply(x, w, b)
+        return linear(x, w, b)

@@ -8,7 +8,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from nicer_stream.model.linear import Linear, linear
+from nicer_stream.model.linear import Linear
 from nicer_stream.model.softplus import SOFTPLUS_BETA as _SOFTPLUS_BETA, softplus_beta
 from nicer_stream.model.sdf_grad_mlp import FusedSdfGradMLP
 
@@ -28,12 +28,7 @@ class GeometryMLP(nn.Module):
         meshing skip the features' rows of the last layer); no spatial gradient."""
         for layer in self.layers[:-1]:
             h = softplus_beta(layer(h))
-        last = self.layers[-1]
-        if n_out is None:
-            return last(h)
-        # Sliced weights: through autograd's F.linear when a graph may be needed.
-        fn = F.linear if torch.is_grad_enabled() else linear
-        return fn(h, last.weight[:n_out], last.bias[:n_out])
+        return self.layers[-1](h, n_out)
 
     def value_and_input_grad(self, h: torch.Tensor):
         """h (N, in) -> out (N, out) and u = d out[:, 0] / d h (N, in), both differentiable.
@@ -42,11 +37,6 @@ class GeometryMLP(nn.Module):
         rows of `reference_forward`; the caller contracts u with its inputs' Jacobians."""
         params = [p for layer in self.layers for p in (layer.weight, layer.bias)]
         return FusedSdfGradMLP.apply(h, len(self.layers), *params)
-
-    def value_and_grad0(self, h: torch.Tensor, tangent: torch.Tensor):
-        """h (N, in), tangent (N, 3, in) -> out (N, out), the tangent of out[:, 0] only (N, 3)."""
-        out, u = self.value_and_input_grad(h)
-        return out, torch.bmm(tangent, u.unsqueeze(-1)).squeeze(-1)
 
     def reference_forward(self, h: torch.Tensor, tangent: torch.Tensor | None = None):
         """The same function through autograd over plain ops (the tests' reference)."""
