@@ -15,9 +15,9 @@ from skimage.measure import marching_cubes
 from nicer_stream.errors import UserError
 from nicer_stream.geometry.camera import in_image, project
 from nicer_stream.geometry.se3 import invert, transform_points
+from nicer_stream.mesh.sparse_grid import JumpFn, SdfFn, evaluate_grid, evaluate_grid_sparse
 from nicer_stream.types import Intrinsics
 
-SdfFn = Callable[[torch.Tensor], torch.Tensor]
 ColorFn = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
 
 
@@ -30,24 +30,6 @@ def _grid_axes(bound_min, bound_max, resolution: int) -> list[np.ndarray]:
     if not np.all(hi > lo):
         raise UserError(f"mesh bound_max {hi.tolist()} must exceed bound_min {lo.tolist()} on every axis")
     return [np.linspace(lo[i], hi[i], resolution) for i in range(3)]
-
-
-def _evaluate_grid(sdf_fn: SdfFn, axes: list[np.ndarray], chunk: int, device) -> np.ndarray:
-    """(R, R, R) float32 SDF volume, volume[i, j, k] = sdf(x_i, y_j, z_k)."""
-    R = len(axes[0])
-    ax = [torch.as_tensor(a, dtype=torch.float32, device=device) for a in axes]
-    yz = torch.stack(torch.meshgrid(ax[1], ax[2], indexing="ij"), dim=-1).reshape(-1, 2)
-    out = np.empty((R, R * R), dtype=np.float32)
-    # Points are built a few x-slabs at a time: a full (R^3, 3) array would
-    # need 1.6 GB at R = 512.
-    slabs = max(1, chunk // (R * R))
-    with torch.no_grad():
-        for i0 in range(0, R, slabs):
-            xs = ax[0][i0 : i0 + slabs]
-            pts = torch.cat([xs.repeat_interleave(R * R)[:, None], yz.repeat(len(xs), 1)], dim=-1)
-            vals = [sdf_fn(pts[s : s + chunk]).reshape(-1).float().cpu() for s in range(0, len(pts), chunk)]
-            out[i0 : i0 + len(xs)] = torch.cat(vals).numpy().reshape(len(xs), R * R)
-    return out.reshape(R, R, R)
 
 
 def _vertex_colors(color_fn: ColorFn, mesh: trimesh.Trimesh, chunk: int, device) -> np.ndarray:
@@ -70,6 +52,8 @@ def extract_mesh(
     resolution: int,
     chunk: int = 65536,
     device=None,
+    sparse: bool = True,
+    jump_fn: JumpFn | None = None,
 ) -> trimesh.Trimesh:
     """Zero level set of `sdf_fn` inside the box [bound_min, bound_max].
 
@@ -78,11 +62,28 @@ def extract_mesh(
         [0, 1], or None for no colours.
     bound_min, bound_max: (3,) box corners; resolution: samples per axis (the
         voxel size is extent / (resolution - 1)); chunk: points per call.
+    sparse: evaluate sdf_fn coarse to fine, densely only near its zero
+        crossings (`sparse_grid.evaluate_grid_sparse`: a fraction of the
+        resolution^3 calls), assuming sdf_fn is L-Lipschitz with L < 4 (a
+        learnt SDF is about 1) inside every box jump_fn clears. False: at
+        every grid point, the reference.
+    jump_fn: boxes lo (B, 3), hi (B, 3) -> (B,) bool, True where sdf_fn may
+        be discontinuous inside [lo, hi] (e.g. a constant outside observed
+        voxels: boxes holding observed and unobserved ones), which the sparse
+        grid then evaluates densely; None: sdf_fn is continuous. Unused when
+        sparse is False.
     Returns a mesh with world-coordinate vertices, outward-facing faces and
     uint8 vertex colours; an empty mesh when the SDF has no zero crossing.
+    Both paths give the same mesh under that assumption, except next to
+    non-finite samples: those take the volume's largest (for -inf smallest)
+    finite value, which the sparse volume may not hold, so vertices on their
+    edges can sit elsewhere along the edge.
     """
     axes = _grid_axes(bound_min, bound_max, resolution)
-    volume = _evaluate_grid(sdf_fn, axes, chunk, device)
+    if sparse:
+        volume = evaluate_grid_sparse(sdf_fn, axes, chunk, device, jump_fn=jump_fn)
+    else:
+        volume = evaluate_grid(sdf_fn, axes, chunk, device)
     finite = volume[np.isfinite(volume)]
     if finite.size == 0 or finite.min() >= 0 or finite.max() <= 0:
         return trimesh.Trimesh()

@@ -11,6 +11,7 @@ import trimesh
 from nicer_stream.config import SlamConfig
 from nicer_stream.io.output_dir import RENDERS_DIR, render_name
 from nicer_stream.mesh import cull_to_frustums, extract_mesh
+from nicer_stream.mesh.sparse_grid import mixed_voxel_boxes
 from nicer_stream.mesh.visibility import DepthView, cull_by_rendered_depth
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
@@ -63,12 +64,13 @@ class MeshAborted(Exception):
 
 
 def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intrinsics, cfg: SlamConfig,
-               should_stop=None) -> trimesh.Trimesh:
+               should_stop=None, sparse: bool = True) -> trimesh.Trimesh:
     """Marching cubes over the bound, evaluating the full SDF only in voxels the mapping
     sampled (elsewhere the map knows nothing: treated as free space), then culled to
     the cameras' frustums and to what the rendered depth says they see (no surfaces
     behind walls, none in space the renders see through). Vertex colours from the colour network.
-    `should_stop()`, polled between SDF chunks, raises MeshAborted when true."""
+    `should_stop()`, polled between SDF chunks, raises MeshAborted when true. `sparse`: the SDF
+    densely only near the surface (`extract_mesh`; the same mesh), False: at every grid point."""
     resolution = cfg.mesh.resolution
     lo, hi = model.bound.world_min_max()
     observed = beta.counts > 0
@@ -83,8 +85,19 @@ def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intr
             out[mask] = model.sdf_world(x[mask])
         return out
 
+    n = beta.cfg.beta_voxels
+
+    def voxel_ijk(x: torch.Tensor) -> torch.Tensor:
+        flat = beta.voxel_index(model.bound.normalise(x))
+        return torch.stack([flat // (n * n), flat // n % n, flat % n], dim=-1)
+
+    def jump_fn(box_lo: torch.Tensor, box_hi: torch.Tensor) -> torch.Tensor:
+        # sdf_fn jumps to 1 where the observed voxels end; voxel indices grow with the coordinates,
+        # so the box's points fall in the voxels between its corners' ones.
+        return mixed_voxel_boxes(observed.reshape(n, n, n), voxel_ijk(box_lo), voxel_ijk(box_hi))
+
     with torch.no_grad():
-        mesh = extract_mesh(sdf_fn, model.color_world, lo, hi, resolution)
+        mesh = extract_mesh(sdf_fn, model.color_world, lo, hi, resolution, sparse=sparse, jump_fn=jump_fn)
     if not len(mesh.faces):
         return mesh
     mesh = cull_to_frustums(mesh, poses, intr)
