@@ -214,8 +214,8 @@ class TrackingConfig:
     classical with `--priors stereo` (whose depth is only as good as the poses), else none."""
     refine: str = "all"
     """With the frontend on: 'all' refines every frame's pose against the map (the paper's
-    tracking); 'keyframes' refines only the frames that become keyframes (they seed the map and
-    the frontend's bundle adjustment) and keeps the frontend's pose for the others. Frames the
+    tracking); 'keyframes' refines only the frames that become keyframes (they seed the map)
+    and keeps the frontend's pose for the others. Frames the
     frontend has no pose for are refined either way."""
     rejected_keyframe: str = "pass"
     """With the frontend on, a keyframe slot whose refined pose fails a check: 'pass' (the frame
@@ -267,6 +267,14 @@ class FrontendConfig:
     """Frames whose observations are kept (landmarks no frame in it sees are dropped)."""
     min_parallax_deg: float = 1.0
     """Triangulate a track once its two views' rays are this far apart."""
+    guided_px: float = 10.0
+    """A track with a landmark matches only keypoints this close to where a constant-velocity
+    pose puts it (SIFT; 0: anywhere in the image)."""
+    retriangulate_gain: float = 2.0
+    """A landmark is triangulated again from a baseline giving this many times its parallax
+    (0: never; landmarks then move only in the bundle adjustment)."""
+    retriangulate_below_deg: float = 5.0
+    """... while its parallax is below this many degrees (enough for ~2% depth at half a pixel)."""
     reproj_px: float = 2.0
     """Inlier threshold of PnP, triangulation and the BA's Huber loss, pixels."""
     min_inliers: int = 30
@@ -274,10 +282,14 @@ class FrontendConfig:
     init_parallax_deg: float = 2.0
     """Without a depth prior, the SLAM starts once the first frame and the latest share tracks
     whose median parallax is this large (the essential matrix gives the second pose)."""
-    ba_keyframes: int = 6
-    """Keyframes in the local bundle adjustment."""
-    ba_fixed: int = 2
-    """Its oldest this many keyframes stay fixed (gauge and scale come from the map)."""
+    ba_frames: int = 15
+    """Recent trusted frames in the local bundle adjustment (0: none)."""
+    ba_every: int = 1
+    """It runs every this many trusted frames."""
+    ba_fixed: int = 3
+    """Its oldest this many frames stay fixed (gauge and scale)."""
+    ba_iters: int = 10
+    """Its Levenberg-Marquardt iterations at most."""
     max_disagreement_depth_frac: float = 0.005
     """Photometric and frontend poses further apart than this fraction of the landmarks' median
     depth (or than `max_disagreement_frac` of the frame's motion, whichever is larger) are a

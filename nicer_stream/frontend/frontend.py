@@ -1,6 +1,7 @@
-"""The classical frontend: KLT tracks through every frame, landmarks triangulated with the
-poses the SLAM trusts, a PnP pose per frame that seeds the photometric tracker, and a local
-bundle adjustment at keyframes. Poses are T_world_cam float64 (4, 4) in the SLAM's world
+"""The classical frontend: feature tracks through every frame (matched near where the landmarks
+should appear), landmarks triangulated with the poses the SLAM trusts (again as the baseline
+widens), a PnP pose per frame that seeds the photometric tracker, and a sliding-window bundle
+adjustment over the recent trusted frames. Poses are T_world_cam float64 (4, 4) in the SLAM's world
 frame and scale (the landmarks come from its poses, so PnP answers in the same scale)."""
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import numpy as np
 from nicer_stream.config import FrontendConfig
 from nicer_stream.frontend.klt import KltTracks, to_grey_u8
 from nicer_stream.frontend.sift import SiftTracks
-from nicer_stream.frontend.local_ba import bundle_adjust
+from nicer_stream.frontend.schur_ba import bundle_adjust_schur
 from nicer_stream.frontend.triangulate import project, triangulate
 from nicer_stream.slam.two_view import essential_pose
 from nicer_stream.tracking.flow_init import pnp_pose
@@ -47,22 +48,39 @@ class ClassicalFrontend:
         self.obs: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # frame -> (track ids, pixels)
         self.poses: dict[int, np.ndarray] = {}  # trusted poses of observed frames
         self.landmarks: dict[int, np.ndarray] = {}  # track id -> world point (3,)
-        self.keyframes: list[int] = []
+        self.parallax: dict[int, float] = {}  # track id -> ray angle (deg) its landmark was triangulated with
+        self.posed: list[int] = []  # frames with trusted poses, in the order they were set
         self.own: dict[int, np.ndarray] = {}  # its own PnP poses, by frame
         self.last_ba_rms = float("nan")
+        self._since_ba = 0  # trusted frames since the last bundle adjustment
 
     # -- every frame ---------------------------------------------------------------
     def observe(self, index: int, rgb: np.ndarray, intr: Intrinsics) -> None:
         """Follow the features into this frame (`cfg.features`: SIFT matches or KLT tracks)."""
         self.intr = intr
-        self.obs[index] = self.tracks.step(to_grey_u8(rgb))
+        self.obs[index] = self.tracks.step(to_grey_u8(rgb), self._predicted(index), self.cfg.guided_px,
+                                             2 * self.cfg.min_inliers)
         for k in sorted(self.obs)[: max(0, len(self.obs) - self.cfg.window)]:
             del self.obs[k]
             self.poses.pop(k, None)
             self.own.pop(k, None)
+        self.posed = [k for k in self.posed if k in self.poses]
         # Landmarks of tracks no frame in the window sees any more are dropped: bounded memory.
         seen = set(np.concatenate([o[0] for o in self.obs.values()]).tolist())
         self.landmarks = {k: X for k, X in self.landmarks.items() if k in seen}
+        self.parallax = {k: a for k, a in self.parallax.items() if k in seen}
+
+    def _predicted(self, index: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """Where the landmarks should appear in frame `index`: (track ids (P,), pixels (P, 2)) from
+        a constant-velocity pose over the last two frames it placed; None without those."""
+        placed = {**self.own, **self.poses}
+        if self.intr is None or not self.landmarks or index - 1 not in placed or index - 2 not in placed:
+            return None
+        T1 = placed[index - 1]
+        T = T1 @ np.linalg.inv(placed[index - 2]) @ T1
+        ids = np.fromiter(self.landmarks, np.int64, len(self.landmarks))
+        uv, z = project(T, np.stack(list(self.landmarks.values())), self.intr)
+        return ids[z > 0], uv[z > 0]
 
     def estimate(self, index: int, T_guess: np.ndarray) -> FrontendPose | None:
         """PnP pose of observed frame `index` from its tracks' landmarks; None when fewer than
@@ -86,7 +104,7 @@ class ClassicalFrontend:
         identity, from the essential matrix of their common tracks, scaled so the median depth
         of the triangulated inliers in `first` is `median_m`; with those points (M, 3) and the
         inlier count. None with fewer than 2 * `min_inliers` inliers or median parallax below
-        `init_parallax_deg`."""
+        `init_parallax_deg` (half that once fewer than 4 * `min_inliers` tracks are common)."""
         if first not in self.obs or second not in self.obs:
             return None
         (ids0, uv0), (ids1, uv1) = self.obs[first], self.obs[second]
@@ -104,27 +122,36 @@ class ClassicalFrontend:
         rays0, rays1 = X / np.linalg.norm(X, axis=1, keepdims=True), X - T1[:3, 3]
         rays1 /= np.linalg.norm(rays1, axis=1, keepdims=True)
         parallax = np.degrees(np.median(np.arccos(np.clip((rays0 * rays1).sum(1), -1, 1))))
-        if parallax < self.cfg.init_parallax_deg:
+        # Tracks fading (forward motion past near surfaces) before the parallax grows: half the
+        # parallax now beats waiting for a pair with too few common tracks to start from.
+        fading = len(common) < 4 * self.cfg.min_inliers
+        if parallax < self.cfg.init_parallax_deg * (0.5 if fading else 1.0):
             return None
         s = median_m / float(np.median(X[:, 2]))
         T1[:3, 3] *= s
         return T1, X * s, int(n_in)
 
     # -- poses the SLAM decided --------------------------------------------------------
-    def set_pose(self, index: int, T_world_cam: np.ndarray, trusted: bool = True, keyframe: bool = False) -> None:
+    def set_pose(self, index: int, T_world_cam: np.ndarray, trusted: bool = True) -> None:
         """Record the SLAM's pose of `index`; a trusted one triangulates new landmarks against
-        the oldest posed frame that saw each track, and a keyframe runs the local BA."""
+        the oldest posed frame that saw each track and (every `ba_every`) runs the local BA."""
         if index not in self.obs or not trusted:
             return
         self.poses[index] = self.own.pop(index, np.asarray(T_world_cam, np.float64))
+        self.posed = [k for k in self.posed if k != index] + [index]
         self._triangulate(index)
-        if keyframe and index not in self.keyframes:
-            self.keyframes = sorted([k for k in self.keyframes if k in self.poses] + [index])
-            self._bundle_adjust()
+        self._bundle_adjust()
 
     def _triangulate(self, index: int) -> None:
+        """Landmarks for this frame's tracks from the oldest posed frame that saw each (the widest
+        baseline). A landmark triangulated with little parallax is triangulated again once the
+        baseline gives `retriangulate_gain` times its parallax: in forward motion most tracks start
+        near `min_parallax_deg`, where half a pixel is ~20% of depth, and such a landmark would
+        otherwise bias every later pose."""
         ids, uv = self.obs[index]
-        new = ~np.array([i in self.landmarks for i in ids.tolist()], bool)
+        gain, cap = self.cfg.retriangulate_gain, self.cfg.retriangulate_below_deg
+        redo = np.array([gain > 0 and self.parallax.get(t, np.inf) < cap for t in ids.tolist()], bool)
+        new = ~np.array([i in self.landmarks for i in ids.tolist()], bool) | redo
         for k in sorted(self.poses):  # oldest first: the widest baseline for each track
             if k == index or not new.any():
                 continue
@@ -134,16 +161,29 @@ class ClassicalFrontend:
             if not sel.any():
                 continue
             j_k = np.array([pos[t] for t in ids[sel].tolist()])
-            X, ok = triangulate(self.poses[k], self.poses[index], uv_k[j_k], uv[sel], self.intr,
-                                self.cfg.reproj_px, self.cfg.min_parallax_deg)
-            for t, x in zip(ids[sel][ok].tolist(), X[ok]):
+            X, ok, angle = triangulate(self.poses[k], self.poses[index], uv_k[j_k], uv[sel], self.intr,
+                                       self.cfg.reproj_px, self.cfg.min_parallax_deg, with_angle=True)
+            before = np.array([self.parallax.get(t, 0.0) for t in ids[sel].tolist()])
+            ok &= angle >= gain * before  # a re-triangulation must widen the baseline
+            for t, x, a in zip(ids[sel][ok].tolist(), X[ok], angle[ok]):
                 self.landmarks[t] = x
-            new[np.flatnonzero(sel)[ok]] = False
+                self.parallax[t] = float(a)
+            # A redo is decided by the oldest frame (later ones are narrower); a new track that failed
+            # here (e.g. a mismatch in that frame) may still triangulate against a later one.
+            new[np.flatnonzero(sel)[ok | redo[sel]]] = False
 
     def _bundle_adjust(self) -> None:
-        frames = self.keyframes[-self.cfg.ba_keyframes:] if self.cfg.ba_keyframes > 0 else []
+        """Every `ba_every` trusted frames: the last `ba_frames` of them and their landmarks, the
+        `ba_fixed` posed first held (gauge and scale). Order of posing, not of frame index: at the
+        start that holds the two views the SLAM began from (frames held between them are posed
+        later), so the scale keeps their baseline rather than that of two neighbouring frames."""
+        self._since_ba += 1
+        if self.cfg.ba_frames <= 0 or self._since_ba < self.cfg.ba_every:
+            return
+        frames = self.posed[-self.cfg.ba_frames:]
         if len(frames) <= self.cfg.ba_fixed or not self.landmarks:
             return
+        self._since_ba = 0
         counts: dict[int, int] = {}
         for k in frames:
             for t in self.obs[k][0].tolist():
@@ -163,9 +203,9 @@ class ClassicalFrontend:
                     uv.append(uv_k[j])
         if len(cam) < 6 * len(frames):
             return
-        poses, X, self.last_ba_rms = bundle_adjust([self.poses[k] for k in frames], self.cfg.ba_fixed,
-                                                   np.stack([self.landmarks[t] for t in lm_ids]), np.array(cam),
-                                                   np.array(pt), np.array(uv), self.intr, self.cfg.reproj_px)
+        poses, X, self.last_ba_rms = bundle_adjust_schur(
+            [self.poses[k] for k in frames], self.cfg.ba_fixed, np.stack([self.landmarks[t] for t in lm_ids]),
+            np.array(cam), np.array(pt), np.array(uv), self.intr, self.cfg.reproj_px, self.cfg.ba_iters)
         for k, T in zip(frames, poses):
             self.poses[k] = T
         for t, x in zip(lm_ids, X):

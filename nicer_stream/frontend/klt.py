@@ -52,8 +52,9 @@ class KltTracks:
         self.uv = np.zeros((0, 2), np.float32)
         self.next_id = 0
 
-    def step(self, grey: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(H, W) uint8 -> (track ids (M,) int64, pixels (M, 2) float64) of this frame."""
+    def step(self, grey: np.ndarray, predicted=None, radius_px: float = 0.0, min_guided: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """(H, W) uint8 -> (track ids (M,) int64, pixels (M, 2) float64) of this frame.
+        `predicted`, `radius_px` and `min_guided` (see `SiftTracks.step`) are ignored: LK searches locally."""
         if self.prev is not None and self.prev.shape == grey.shape:
             uv, ok = track(self.prev, grey, self.uv, self.fb_px)
             self.ids, self.uv = self.ids[ok], uv[ok]

@@ -1,30 +1,22 @@
 """Sparse local bundle adjustment (scipy least squares, Huber loss) over recent camera poses
-and the landmarks they see. The oldest `n_fixed` poses stay put: they fix the gauge and the
-scale, which the neural map has already committed to."""
+and the landmarks they see: the reference for `schur_ba.bundle_adjust_schur`, which the
+frontend runs (the same problem, ~10x faster here). The oldest `n_fixed` poses stay put: they
+fix the gauge and the scale, which the neural map has already committed to."""
 from __future__ import annotations
 
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import lil_matrix
 
+from nicer_stream.frontend.schur_ba import so3_exp
 from nicer_stream.types import Intrinsics
-
-
-def rodrigues(r: np.ndarray) -> np.ndarray:
-    """(N, 3) rotation vectors -> (N, 3, 3) rotation matrices."""
-    th = np.linalg.norm(r, axis=1)[:, None, None]
-    k = r / np.maximum(th[:, :, 0], 1e-12)
-    K = np.zeros((len(r), 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
-    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
-    return np.eye(3) + np.sin(th) * K + (1 - np.cos(th)) * (K @ K)
 
 
 def _residuals(params, n_free, fixed_cw, n_pts, cam, pt, uv, intr):
     """Reprojection errors (2M,) of all observations; free poses as (rvec, tvec) of T_cam_world."""
     free = params[: 6 * n_free].reshape(n_free, 6)
     X = params[6 * n_free:].reshape(n_pts, 3)
-    R = np.concatenate([fixed_cw[:, :3, :3], rodrigues(free[:, :3])])
+    R = np.concatenate([fixed_cw[:, :3, :3], so3_exp(free[:, :3])])
     t = np.concatenate([fixed_cw[:, :3, 3], free[:, 3:]])
     p = np.einsum("nij,nj->ni", R[cam], X[pt]) + t[cam]
     z = np.maximum(p[:, 2], 1e-6)
@@ -60,7 +52,7 @@ def bundle_adjust(poses: list[np.ndarray], n_fixed: int, points: np.ndarray, cam
     out = list(poses[:n_fixed])
     for f in free:
         T_cw = np.eye(4)
-        T_cw[:3, :3], T_cw[:3, 3] = rodrigues(f[None, :3])[0], f[3:]
+        T_cw[:3, :3], T_cw[:3, 3] = so3_exp(f[None, :3])[0], f[3:]
         out.append(np.linalg.inv(T_cw))
     err = np.linalg.norm(res.fun.reshape(-1, 2), axis=1)
     rms = float(np.sqrt(np.mean(err[err < 3 * huber_px] ** 2))) if (err < 3 * huber_px).any() else float("nan")

@@ -28,8 +28,16 @@ class SiftTracks:
         self.seen = np.zeros(0, np.int64)
         self.shape: tuple[int, ...] | None = None
 
-    def step(self, grey: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(H, W) uint8 -> (track ids (M,) int64, pixels (M, 2) float64) of this frame."""
+    def step(self, grey: np.ndarray, predicted: tuple[np.ndarray, np.ndarray] | None = None,
+             radius_px: float = 0.0, min_guided: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """(H, W) uint8 -> (track ids (M,) int64, pixels (M, 2) float64) of this frame.
+
+        `predicted` (track ids (P,), pixels (P, 2)): where those tracks should appear (their
+        landmarks seen from a predicted pose); they match only keypoints within `radius_px` of
+        it. On repeated texture (a checkered facade seen while driving past) the next cell is
+        a near-perfect descriptor match on the same epipolar line, which nothing else rejects.
+        With fewer than `min_guided` predicted tracks found so, the prediction is taken to be off
+        and the frame is matched without it."""
         if self.shape != grey.shape:  # a new image size starts new tracks
             self.desc, self.uv = self.desc[:0], self.uv[:0]
             self.ids, self.seen = self.ids[:0], self.seen[:0]
@@ -39,8 +47,10 @@ class SiftTracks:
         desc = np.zeros((0, 128), np.float32) if desc is None else desc
         ids = np.full(len(uv), -1, np.int64)
         if len(self.ids) >= 2 and len(desc) >= 2:
-            good = [p[0] for p in self.matcher.knnMatch(desc, self.desc, k=2)
-                    if len(p) == 2 and p[0].distance < self.ratio * p[1].distance]
+            mask = self._guide_mask(uv, predicted, radius_px)
+            good = self._matches(desc, mask)
+            if mask is not None and sum(m.trainIdx in self._predicted_rows for m in good) < min_guided:
+                good = self._matches(desc, None)  # the prediction was off: match anywhere
             q = np.array([m.queryIdx for m in good], np.int64)
             t = np.array([m.trainIdx for m in good], np.int64)
             q, t = self._unique(q, t, np.array([m.distance for m in good]))
@@ -52,6 +62,33 @@ class SiftTracks:
         self._remember(ids, uv, desc)
         self.frame += 1
         return ids, uv
+
+    def _matches(self, desc: np.ndarray, mask: np.ndarray | None) -> list:
+        """Best matches of keypoint descriptors to tracks that pass the ratio test. Under a mask
+        a keypoint may have one allowed track only (its twin outside the radius): that match
+        has no ratio to pass, so it must be as close as the ratio-tested matches' 90th percentile."""
+        pairs = self.matcher.knnMatch(desc, self.desc, k=2, mask=mask)
+        good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < self.ratio * p[1].distance]
+        if mask is not None and good:
+            bar = np.percentile([m.distance for m in good], 90)
+            good += [p[0] for p in pairs if len(p) == 1 and p[0].distance <= bar]
+        return good
+
+    def _guide_mask(self, uv: np.ndarray, predicted, radius_px: float) -> np.ndarray | None:
+        """(Q, T) uint8 for knnMatch: keypoint q may match track t unless t has a prediction
+        further than `radius_px` from q; None without predictions."""
+        self._predicted_rows: set[int] = set()
+        if predicted is None or radius_px <= 0 or not len(predicted[0]):
+            return None
+        at = {t: j for j, t in enumerate(predicted[0].tolist())}
+        rows = np.array([at.get(t, -1) for t in self.ids.tolist()])
+        has = rows >= 0
+        self._predicted_rows = set(np.flatnonzero(has).tolist())
+        mask = np.ones((len(uv), len(self.ids)), np.uint8)
+        if has.any():
+            d = np.linalg.norm(uv[:, None, :] - predicted[1][rows[has]][None], axis=2)
+            mask[:, has] = d <= radius_px
+        return mask
 
     @staticmethod
     def _unique(q: np.ndarray, t: np.ndarray, dist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

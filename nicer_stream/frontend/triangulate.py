@@ -17,12 +17,12 @@ def project(T_world_cam: np.ndarray, X: np.ndarray, intr: Intrinsics) -> tuple[n
 
 
 def triangulate(T_a: np.ndarray, T_b: np.ndarray, uv_a: np.ndarray, uv_b: np.ndarray, intr: Intrinsics,
-                max_reproj_px: float = 2.0, min_parallax_deg: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+                max_reproj_px: float = 2.0, min_parallax_deg: float = 1.0, with_angle: bool = False):
     """Linear (DLT) triangulation of N pixel pairs seen from T_world_cam `T_a` and `T_b`.
 
     Returns (world points (N, 3), ok (N,) bool): in front of both cameras, reprojecting
     within `max_reproj_px` in both, with rays at least `min_parallax_deg` apart (less
-    parallax gives depths that noise dominates)."""
+    parallax gives depths that noise dominates); `with_angle` adds their angles (N,) in degrees."""
     K = intr.matrix()
     P = [K @ np.linalg.inv(T)[:3] for T in (T_a, T_b)]
     n = len(uv_a)
@@ -41,4 +41,6 @@ def triangulate(T_a: np.ndarray, T_b: np.ndarray, uv_a: np.ndarray, uv_b: np.nda
     ra, rb = X - T_a[:3, 3], X - T_b[:3, 3]
     cos = (ra * rb).sum(1) / np.maximum(np.linalg.norm(ra, axis=1) * np.linalg.norm(rb, axis=1), 1e-12)
     ok &= cos < np.cos(np.radians(min_parallax_deg))
+    if with_angle:
+        return X, ok, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
     return X, ok

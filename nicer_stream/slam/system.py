@@ -203,7 +203,7 @@ class SlamSystem:
         # With keyframe-only refinement a failed slot passes to the next frame, which is then
         # refined: otherwise the map would go `keyframe_every` more frames without a keyframe.
         self._keyframe_owed = is_kf and not trusted and self.cfg.tracking.refine == "keyframes"
-        self._frontend_pose(i, self.poses[i], trusted or i in self._frontend_kept, is_kf)
+        self._frontend_pose(i, self.poses[i], trusted or i in self._frontend_kept)
         if is_kf and trusted and i not in self.keyframes:
             self.keyframes.append(i)
             events.append(KeyframeAdded(i))
@@ -294,7 +294,7 @@ class SlamSystem:
         else:
             self.bound = bound_from_config(cfg.bound)
         for f in [mf] + ([second] if second is not None else []):
-            self._frontend_pose(f.index, self.poses[f.index], True, True)
+            self._frontend_pose(f.index, self.poses[f.index], True)
         self.model = SceneModel(cfg.model, self.bound).to(self.device)
         camera = self.bound.normalise(T0[None, :3, 3])[0]
         self.model.geometry.set_sphere(*initial_sphere(cfg.model.sphere_centre, camera, cfg.model.sphere_radius,
@@ -372,8 +372,7 @@ class SlamSystem:
         n = len(self.order) + 1
         if (front is not None and self.cfg.tracking.refine == "keyframes" and not self._keyframe_due(n)
                 and not self._mapping_slot(n)):
-            # Neither a keyframe nor mapped from: the frontend's pose stands (its bundle adjustment
-            # leans on the refined keyframes).
+            # Neither a keyframe nor mapped from: the frontend's pose stands.
             self.poses[mf.index] = T_pred.detach()
             self._unrefined.add(mf.index)
             return FrameTracked(mf.index, mf.timestamp, T_pred.detach().double().cpu().numpy(), math.nan, 0.0)
@@ -414,10 +413,10 @@ class SlamSystem:
         with self._frontend_timer():
             return self.frontend.estimate(index, T_guess.double().cpu().numpy())
 
-    def _frontend_pose(self, index: int, T: torch.Tensor, trusted: bool, keyframe: bool) -> None:
+    def _frontend_pose(self, index: int, T: torch.Tensor, trusted: bool) -> None:
         if self.frontend is not None:
             with self._frontend_timer():
-                self.frontend.set_pose(index, T.double().cpu().numpy(), trusted, keyframe)
+                self.frontend.set_pose(index, T.double().cpu().numpy(), trusted)
 
     def _flow_init(self, mf: MapFrame, T_prev: torch.Tensor) -> torch.Tensor:
         """PnP pose from the stored frames' flows to `mf` (else `T_prev`)."""

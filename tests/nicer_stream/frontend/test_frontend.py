@@ -17,18 +17,22 @@ def _err(T_gt, T):
     return float(np.linalg.norm(d[:3, 3])), float(np.degrees(float(rotation_angle(torch.from_numpy(d[:3, :3])))))
 
 
-@pytest.mark.parametrize("uri, frames", [("synthetic:room?frames=120", 30), ("synthetic:street?frames=40&grey=1", 25)])
-def test_frontend_follows_the_camera_from_two_known_poses(uri, frames):
+@pytest.mark.parametrize("uri, frames, bound", [("synthetic:room?frames=120", 30, 0.02),
+                                                ("synthetic:street?frames=40&grey=1", 25, 0.02),
+                                                ("synthetic:street?frames=90", 90, 0.03)])
+def test_frontend_follows_the_camera_from_two_known_poses(uri, frames, bound):
     """Frames 0 and 5 posed from ground truth, every later frame estimated by PnP and then fed
     back as trusted (what the SLAM does without photometric refinement): the error stays small
-    against the path length."""
+    against the path length (largest error, unaligned: on the 90-frame street that is mostly
+    scale drift, 2.7%). That street drives past checkered facades (frames 55-85), where
+    unguided matching and a keyframe-only BA let the rotation drift 15 degrees."""
     src = list(open_source(uri, SourceOptions(max_frames=frames)))
     fe = ClassicalFrontend(FrontendConfig())
     path = sum(np.linalg.norm(b.gt_pose[:3, 3] - a.gt_pose[:3, 3]) for a, b in zip(src, src[1:]))
     for f in src[:6]:
         fe.observe(f.index, f.rgb, f.intrinsics)
-    fe.set_pose(0, src[0].gt_pose, keyframe=True)
-    fe.set_pose(5, src[5].gt_pose, keyframe=True)
+    fe.set_pose(0, src[0].gt_pose)
+    fe.set_pose(5, src[5].gt_pose)
     errs = []
     for k, f in enumerate(src[1:5], start=1):  # the frames held before the second view
         est = fe.estimate(f.index, src[k - 1].gt_pose)
@@ -42,9 +46,9 @@ def test_frontend_follows_the_camera_from_two_known_poses(uri, frames):
         t_err, r_err = _err(f.gt_pose, est.T_world_cam)
         errs.append(t_err)
         assert r_err < 1.0, (f.index, r_err)
-        fe.set_pose(f.index, est.T_world_cam, keyframe=k % 5 == 0)
+        fe.set_pose(f.index, est.T_world_cam)
         T_prev = est.T_world_cam
-    assert max(errs) < 0.02 * path, (max(errs), path)  # dead reckoning: room 1.6%
+    assert max(errs) < bound * path, (max(errs), path)
     assert len(fe.obs) <= fe.cfg.window
 
 
@@ -53,10 +57,10 @@ def test_untrusted_pose_is_not_triangulated_from():
     fe = ClassicalFrontend(FrontendConfig())
     for f in src:
         fe.observe(f.index, f.rgb, f.intrinsics)
-    fe.set_pose(0, src[0].gt_pose, keyframe=True)
+    fe.set_pose(0, src[0].gt_pose)
     fe.set_pose(7, src[7].gt_pose @ np.diag([1.0, 1.0, 1.0, 1.0]), trusted=False)
     assert not fe.landmarks and 7 not in fe.poses
-    fe.set_pose(7, src[7].gt_pose, keyframe=True)
+    fe.set_pose(7, src[7].gt_pose)
     assert len(fe.landmarks) > 50
     X = np.stack(list(fe.landmarks.values()))
     # landmarks lie in the room (GT geometry): inside its bounds

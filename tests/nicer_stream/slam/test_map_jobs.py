@@ -25,13 +25,14 @@ def test_snapshot_is_a_frozen_copy_that_mapping_steps_do_not_change(tiny_config)
     snap = take_snapshot(model, beta, 7)
     before = snap.model.geometry(x).sdf.detach().clone()
     assert snap.version == 7 and not any(p.requires_grad for p in snap.model.parameters())
-    assert torch.equal(before, model.geometry(x).sdf.detach())
+    # Equal up to rounding: the frozen copy's products may take another kernel (no gradient).
+    assert torch.allclose(before, model.geometry(x).sdf.detach(), atol=1e-6)
     with torch.no_grad():  # a mapping step on the live map
         for p in model.parameters():
             p.add_(0.1)
         beta.counts += 5
     model.parameters_changed()
-    assert not torch.equal(model.geometry(x).sdf.detach(), before)
+    assert not torch.allclose(model.geometry(x).sdf.detach(), before, atol=1e-3)
     assert torch.equal(snap.model.geometry(x).sdf.detach(), before)
     assert float(snap.beta.counts.sum()) == 0.0
 
