@@ -215,8 +215,8 @@ class TrackingConfig:
     refine: str = "all"
     """With the frontend on: 'all' refines every frame's pose against the map (the paper's
     tracking); 'keyframes' refines only the frames that become keyframes (they seed the map)
-    and keeps the frontend's pose for the others. Frames the
-    frontend has no pose for are refined either way."""
+    and keeps the frontend's pose for the others. Frames the frontend has no pose for are
+    refined either way."""
     rejected_keyframe: str = "pass"
     """With the frontend on, a keyframe slot whose refined pose fails a check: 'pass' (the frame
     is lost and not mapped from; with `refine = 'keyframes'` the slot passes to the next frame)
@@ -283,9 +283,11 @@ class FrontendConfig:
     """Without a depth prior, the SLAM starts once the first frame and the latest share tracks
     whose median parallax is this large (the essential matrix gives the second pose)."""
     ba_frames: int = 15
-    """Recent trusted frames in the local bundle adjustment (0: none)."""
-    ba_every: int = 1
-    """It runs every this many trusted frames."""
+    """Frames in the local bundle adjustment (0: none): the latest trusted frames that each moved
+    `ba_baseline_frac` from the one before; it runs whenever one joins."""
+    ba_baseline_frac: float = 0.02
+    """... of the median depth of the landmarks they see (every frame on the street at 1 m a
+    frame, every ~4th on the Replica clip)."""
     ba_fixed: int = 3
     """Its oldest this many frames stay fixed (gauge and scale)."""
     ba_iters: int = 10
@@ -446,18 +448,21 @@ def preset(name: str) -> SlamConfig:
     return PRESETS[name]()
 
 
-def override(cfg: Any, values: dict[str, Any], where: str = "config") -> Any:
-    """Return `cfg` with nested `values` applied; unknown keys raise UserError."""
+def override(cfg: Any, values: dict[str, Any], where: str = "config", strict: bool = True) -> Any:
+    """Return `cfg` with nested `values` applied; unknown keys raise UserError (`strict=False`
+    skips them: a config saved by another version, whose renamed settings cannot matter)."""
     names = {f.name: f for f in fields(cfg)}
     changes = {}
     for key, val in values.items():
         if key not in names:
+            if not strict:
+                continue
             raise UserError(f"unknown key '{where}.{key}': valid keys are {', '.join(sorted(names))}")
         cur = getattr(cfg, key)
         if is_dataclass(cur):
             if not isinstance(val, dict):
                 raise UserError(f"'{where}.{key}' must be a table of settings")
-            changes[key] = override(cur, val, f"{where}.{key}")
+            changes[key] = override(cur, val, f"{where}.{key}", strict)
         else:
             changes[key] = tuple(val) if isinstance(val, list) else val
     return replace(cfg, **changes)

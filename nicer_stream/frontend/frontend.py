@@ -49,10 +49,9 @@ class ClassicalFrontend:
         self.poses: dict[int, np.ndarray] = {}  # trusted poses of observed frames
         self.landmarks: dict[int, np.ndarray] = {}  # track id -> world point (3,)
         self.parallax: dict[int, float] = {}  # track id -> ray angle (deg) its landmark was triangulated with
-        self.posed: list[int] = []  # frames with trusted poses, in the order they were set
+        self.posed: list[int] = []  # the bundle adjustment's frames, in the order they were posed
         self.own: dict[int, np.ndarray] = {}  # its own PnP poses, by frame
         self.last_ba_rms = float("nan")
-        self._since_ba = 0  # trusted frames since the last bundle adjustment
 
     # -- every frame ---------------------------------------------------------------
     def observe(self, index: int, rgb: np.ndarray, intr: Intrinsics) -> None:
@@ -134,13 +133,29 @@ class ClassicalFrontend:
     # -- poses the SLAM decided --------------------------------------------------------
     def set_pose(self, index: int, T_world_cam: np.ndarray, trusted: bool = True) -> None:
         """Record the SLAM's pose of `index`; a trusted one triangulates new landmarks against
-        the oldest posed frame that saw each track and (every `ba_every`) runs the local BA."""
+        the oldest posed frame that saw each track; one that moved far enough runs the local BA."""
         if index not in self.obs or not trusted:
             return
         self.poses[index] = self.own.pop(index, np.asarray(T_world_cam, np.float64))
-        self.posed = [k for k in self.posed if k != index] + [index]
         self._triangulate(index)
-        self._bundle_adjust()
+        if self._moved_enough(index):
+            self.posed = [k for k in self.posed if k != index] + [index]
+            self._bundle_adjust()
+
+    def _moved_enough(self, index: int) -> bool:
+        """Whether trusted frame `index` joins the bundle adjustment's frames: the first two do,
+        later ones once `ba_baseline_frac` of the median landmark depth from the last to join. A
+        window of neighbouring frames of a slow camera (1 cm apart at 2 m, the Replica clip) holds
+        the scale by a baseline too short to."""
+        if len(self.posed) < 2:
+            return True
+        ids, _ = self.obs[index]
+        X = [self.landmarks[t] for t in ids.tolist() if t in self.landmarks]
+        if not X:  # nothing to adjust yet
+            return False
+        z = project(self.poses[index], np.stack(X), self.intr)[1]
+        step = np.linalg.norm(self.poses[index][:3, 3] - self.poses[self.posed[-1]][:3, 3])
+        return step >= self.cfg.ba_baseline_frac * float(np.median(z))
 
     def _triangulate(self, index: int) -> None:
         """Landmarks for this frame's tracks from the oldest posed frame that saw each (the widest
@@ -173,17 +188,12 @@ class ClassicalFrontend:
             new[np.flatnonzero(sel)[ok | redo[sel]]] = False
 
     def _bundle_adjust(self) -> None:
-        """Every `ba_every` trusted frames: the last `ba_frames` of them and their landmarks, the
-        `ba_fixed` posed first held (gauge and scale). Order of posing, not of frame index: at the
-        start that holds the two views the SLAM began from (frames held between them are posed
-        later), so the scale keeps their baseline rather than that of two neighbouring frames."""
-        self._since_ba += 1
-        if self.cfg.ba_frames <= 0 or self._since_ba < self.cfg.ba_every:
-            return
+        """The last `ba_frames` of its frames and their landmarks, the `ba_fixed` posed first held
+        (gauge and scale). Order of posing, not of frame index: at the start that holds the two
+        views the SLAM began from (frames held between them are posed later)."""
         frames = self.posed[-self.cfg.ba_frames:]
-        if len(frames) <= self.cfg.ba_fixed or not self.landmarks:
+        if self.cfg.ba_frames <= 0 or len(frames) <= self.cfg.ba_fixed or not self.landmarks:
             return
-        self._since_ba = 0
         counts: dict[int, int] = {}
         for k in frames:
             for t in self.obs[k][0].tolist():

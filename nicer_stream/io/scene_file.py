@@ -24,7 +24,9 @@ def save_scene(out_dir: Path, cfg: SlamConfig, model: SceneModel, beta: BetaFiel
 
 def load_scene(path: Path, device: str = "cpu") -> tuple[SlamConfig, SceneModel, BetaField]:
     data = torch.load(path, map_location=device, weights_only=True)
-    cfg = config_mod.override(config_mod.SlamConfig(), data["config"])
+    # Settings an older version saved and this one renamed (the frontend's, say) do not shape
+    # the scene: skipped; the model's own are checked by its state dict below.
+    cfg = config_mod.override(config_mod.SlamConfig(), data["config"], strict=False)
     b = data["bound"]
     model = SceneModel(cfg.model, SceneBound(tuple(b["centre"]), b["half_extent"], b["source"])).to(device)
     # Scenes saved before the initial sphere was stored keep the default one (bound centre).

@@ -66,3 +66,21 @@ def test_untrusted_pose_is_not_triangulated_from():
     # landmarks lie in the room (GT geometry): inside its bounds
     lo, hi = src[0].gt_pose[:3, 3] - 10, src[0].gt_pose[:3, 3] + 10
     assert ((X > lo) & (X < hi)).all()
+
+
+@pytest.mark.parametrize("orbit_frames, every", [(40, 1), (800, 4)])
+def test_bundle_adjustment_frames_keep_a_baseline(orbit_frames, every):
+    """The room's orbit split into 40 frames moves ~8 cm a frame (>2% of its depth): every frame
+    joins the bundle adjustment. Split into 800, ~4 mm a frame: a frame in 2 or more joins (one
+    in 4 on average here), so the frames the BA holds fixed are not a few millimetres apart."""
+    src = list(open_source(f"synthetic:room?frames={orbit_frames}", SourceOptions(max_frames=24)))
+    fe = ClassicalFrontend(FrontendConfig())
+    for f in src:
+        fe.observe(f.index, f.rgb, f.intrinsics)
+        fe.set_pose(f.index, f.gt_pose)
+    joined = np.diff(fe.posed[1:])  # after the first two, which always join
+    assert len(fe.posed) >= 3
+    if every == 1:
+        assert joined.max() == 1, fe.posed
+    else:
+        assert joined.min() >= 2 and len(fe.posed) <= len(src) // every, fe.posed

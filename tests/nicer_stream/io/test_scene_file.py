@@ -47,3 +47,17 @@ def test_foreign_state_is_a_clear_error(tmp_path):
     torch.save(data, tmp_path / "scene.pt")
     with pytest.raises(UserError, match="re-run"):
         load_scene(tmp_path / "scene.pt")
+
+
+def test_settings_another_version_saved_are_skipped_but_known_ones_kept(tmp_path):
+    """A scene saved before a frontend setting was renamed (`ba_keyframes`) still loads, with the
+    saved values of the settings this version knows."""
+    cfg, model, beta = _scene()
+    save_scene(tmp_path, cfg, model, beta)
+    data = torch.load(tmp_path / "scene.pt", weights_only=True)
+    data["config"]["frontend"]["ba_keyframes"] = 6
+    data["config"]["render"]["n_probe"] = 17
+    torch.save(data, tmp_path / "scene.pt")
+    loaded_cfg, _, _ = load_scene(tmp_path / "scene.pt")
+    assert loaded_cfg.render.n_probe == 17
+    assert not hasattr(loaded_cfg.frontend, "ba_keyframes")
