@@ -1,6 +1,6 @@
 """Sparse local bundle adjustment (scipy least squares, Huber loss) over recent camera poses
 and the landmarks they see: the reference for `schur_ba.bundle_adjust_schur`, which the
-frontend runs (the same problem, ~10x faster here). The oldest `n_fixed` poses stay put: they
+frontend runs (the same problem, converged 7-9x faster in one measurement here). The oldest `n_fixed` poses stay put: they
 fix the gauge and the scale, which the neural map has already committed to."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import lil_matrix
 
-from nicer_stream.frontend.schur_ba import so3_exp
+from nicer_stream.frontend.schur_ba import inlier_rms, reprojection, so3_exp
 from nicer_stream.types import Intrinsics
 
 
@@ -18,10 +18,7 @@ def _residuals(params, n_free, fixed_cw, n_pts, cam, pt, uv, intr):
     X = params[6 * n_free:].reshape(n_pts, 3)
     R = np.concatenate([fixed_cw[:, :3, :3], so3_exp(free[:, :3])])
     t = np.concatenate([fixed_cw[:, :3, 3], free[:, 3:]])
-    p = np.einsum("nij,nj->ni", R[cam], X[pt]) + t[cam]
-    z = np.maximum(p[:, 2], 1e-6)
-    proj = np.stack([intr.fx * p[:, 0] / z + intr.cx, intr.fy * p[:, 1] / z + intr.cy], -1)
-    return (proj - uv).ravel()
+    return reprojection(R, t, X, cam, pt, uv, intr)[1].ravel()
 
 
 def bundle_adjust(poses: list[np.ndarray], n_fixed: int, points: np.ndarray, cam: np.ndarray, pt: np.ndarray,
@@ -54,6 +51,4 @@ def bundle_adjust(poses: list[np.ndarray], n_fixed: int, points: np.ndarray, cam
         T_cw = np.eye(4)
         T_cw[:3, :3], T_cw[:3, 3] = so3_exp(f[None, :3])[0], f[3:]
         out.append(np.linalg.inv(T_cw))
-    err = np.linalg.norm(res.fun.reshape(-1, 2), axis=1)
-    rms = float(np.sqrt(np.mean(err[err < 3 * huber_px] ** 2))) if (err < 3 * huber_px).any() else float("nan")
-    return out, res.x[6 * n_free:].reshape(-1, 3), rms
+    return out, res.x[6 * n_free:].reshape(-1, 3), inlier_rms(res.fun.reshape(-1, 2), huber_px)

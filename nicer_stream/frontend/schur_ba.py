@@ -3,9 +3,9 @@
 The same problem as `local_ba.bundle_adjust` (which hands it to scipy's least squares and
 stays as the reference): poses and points from pixel observations under a Huber loss, the
 first `n_fixed` poses held. Each point couples only to the cameras that see it, so its 3x3
-block is eliminated first and the step solves a (6F, 6F) system for the F free cameras:
-~20 ms an iteration for 15 cameras and 3,000 points here, against ~1 s for scipy's
-sparse trust region, which made a converged window too slow to run every few frames.
+block is eliminated first and the step solves a (6F, 6F) system for the F free cameras. On a
+15-camera window with 23k observations it converged in 0.8-1.1 s where scipy's sparse trust
+region took 7.4-8.1 s to a higher cost (docs/performance.md): too slow to run every frame.
 
 Cameras are T_cam_world = (R, t), updated on the left: R <- exp(w) R, t <- exp(w) t + v.
 """
@@ -17,16 +17,6 @@ import torch
 from nicer_stream.types import Intrinsics
 
 
-def so3_exp(w: np.ndarray) -> np.ndarray:
-    """(N, 3) rotation vectors -> (N, 3, 3) rotation matrices (Rodrigues)."""
-    th = np.linalg.norm(w, axis=1)[:, None, None]
-    k = w / np.maximum(th[:, :, 0], 1e-12)
-    K = np.zeros((len(w), 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
-    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
-    return np.eye(3) + np.sin(th) * K + (1 - np.cos(th)) * (K @ K)
-
-
 def _skew(p: np.ndarray) -> np.ndarray:
     """(M, 3) -> (M, 3, 3) cross-product matrices [p]x."""
     S = np.zeros((len(p), 3, 3))
@@ -35,8 +25,16 @@ def _skew(p: np.ndarray) -> np.ndarray:
     return S
 
 
-def _residuals(R, t, X, cam, pt, uv, intr):
-    """Camera-frame points (M, 3) and reprojection residuals (M, 2) of every observation."""
+def so3_exp(w: np.ndarray) -> np.ndarray:
+    """(N, 3) rotation vectors -> (N, 3, 3) rotation matrices (Rodrigues)."""
+    th = np.linalg.norm(w, axis=1)[:, None, None]
+    K = _skew(w / np.maximum(th[:, :, 0], 1e-12))
+    return np.eye(3) + np.sin(th) * K + (1 - np.cos(th)) * (K @ K)
+
+
+def reprojection(R, t, X, cam, pt, uv, intr):
+    """Camera-frame points (M, 3) and reprojection residuals (M, 2) of every observation:
+    cameras T_cam_world (R (N, 3, 3), t (N, 3)), points X (P, 3), ids cam, pt (M,), pixels uv."""
     p = np.einsum("mij,mj->mi", R[cam], X[pt]) + t[cam]
     z = np.maximum(p[:, 2], 1e-6)
     r = np.stack([intr.fx * p[:, 0] / z + intr.cx, intr.fy * p[:, 1] / z + intr.cy], -1) - uv
@@ -48,6 +46,13 @@ def _gram(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     OpenBLAS keeps threads of its own, and next to torch's (or another process) on two
     cores this one product measured 3 ms or 300 ms from run to run."""
     return (torch.from_numpy(A).T @ torch.from_numpy(B)).numpy()
+
+
+def inlier_rms(r: np.ndarray, huber_px: float) -> float:
+    """RMS pixel error of the residuals r (M, 2) within 3 `huber_px` (NaN when none are)."""
+    err = np.linalg.norm(r, axis=1)
+    inl = err < 3 * huber_px
+    return float(np.sqrt(np.mean(err[inl] ** 2))) if inl.any() else float("nan")
 
 
 def huber_cost(r: np.ndarray, k: float) -> float:
@@ -69,10 +74,10 @@ def bundle_adjust_schur(poses: list[np.ndarray], n_fixed: int, points: np.ndarra
     n_cam, n_pts, n_free = len(poses), len(points), len(poses) - n_fixed
     free = cam >= n_fixed
     lam = 1e-3
-    _, r = _residuals(R, t, X, cam, pt, uv, intr)
+    _, r = reprojection(R, t, X, cam, pt, uv, intr)
     cost = huber_cost(r, huber_px)
     for _ in range(max_iters if n_free > 0 or n_pts > 0 else 0):
-        p, r = _residuals(R, t, X, cam, pt, uv, intr)
+        p, r = reprojection(R, t, X, cam, pt, uv, intr)
         e = np.linalg.norm(r, axis=1)
         w = np.where(e <= huber_px, 1.0, huber_px / np.maximum(e, 1e-12))  # IRLS weights of the Huber loss
         z = np.maximum(p[:, 2], 1e-6)
@@ -119,7 +124,7 @@ def bundle_adjust_schur(poses: list[np.ndarray], n_fixed: int, points: np.ndarra
                 Rn[n_fixed:] = E @ R[n_fixed:]
                 tn[n_fixed:] = np.einsum("nij,nj->ni", E, t[n_fixed:]) + d[:, 3:]
             Xn = X + dX
-            _, rn = _residuals(Rn, tn, Xn, cam, pt, uv, intr)
+            _, rn = reprojection(Rn, tn, Xn, cam, pt, uv, intr)
             new_cost = huber_cost(rn, huber_px)
             if new_cost < cost:
                 break
@@ -138,8 +143,4 @@ def bundle_adjust_schur(poses: list[np.ndarray], n_fixed: int, points: np.ndarra
         T_cw = np.eye(4)
         T_cw[:3, :3], T_cw[:3, 3] = R[k], t[k]
         out.append(np.asarray(poses[k], np.float64) if k < n_fixed else np.linalg.inv(T_cw))
-    _, r = _residuals(R, t, X, cam, pt, uv, intr)
-    err = np.linalg.norm(r, axis=1)
-    inl = err < 3 * huber_px
-    rms = float(np.sqrt(np.mean(err[inl] ** 2))) if inl.any() else float("nan")
-    return out, X, rms
+    return out, X, inlier_rms(reprojection(R, t, X, cam, pt, uv, intr)[1], huber_px)

@@ -47,9 +47,9 @@ class SiftTracks:
         desc = np.zeros((0, 128), np.float32) if desc is None else desc
         ids = np.full(len(uv), -1, np.int64)
         if len(self.ids) >= 2 and len(desc) >= 2:
-            mask = self._guide_mask(uv, predicted, radius_px)
+            mask, guided = self._guide_mask(uv, predicted, radius_px)
             good = self._matches(desc, mask)
-            if mask is not None and sum(m.trainIdx in self._predicted_rows for m in good) < min_guided:
+            if mask is not None and sum(guided[m.trainIdx] for m in good) < min_guided:
                 good = self._matches(desc, None)  # the prediction was off: match anywhere
             q = np.array([m.queryIdx for m in good], np.int64)
             t = np.array([m.trainIdx for m in good], np.int64)
@@ -74,21 +74,19 @@ class SiftTracks:
             good += [p[0] for p in pairs if len(p) == 1 and p[0].distance <= bar]
         return good
 
-    def _guide_mask(self, uv: np.ndarray, predicted, radius_px: float) -> np.ndarray | None:
+    def _guide_mask(self, uv: np.ndarray, predicted, radius_px: float) -> tuple[np.ndarray | None, np.ndarray]:
         """(Q, T) uint8 for knnMatch: keypoint q may match track t unless t has a prediction
-        further than `radius_px` from q; None without predictions."""
-        self._predicted_rows: set[int] = set()
+        further than `radius_px` from q (None without predictions); and (T,) bool: t has one."""
         if predicted is None or radius_px <= 0 or not len(predicted[0]):
-            return None
+            return None, np.zeros(len(self.ids), bool)
         at = {t: j for j, t in enumerate(predicted[0].tolist())}
         rows = np.array([at.get(t, -1) for t in self.ids.tolist()])
         has = rows >= 0
-        self._predicted_rows = set(np.flatnonzero(has).tolist())
         mask = np.ones((len(uv), len(self.ids)), np.uint8)
         if has.any():
             d = np.linalg.norm(uv[:, None, :] - predicted[1][rows[has]][None], axis=2)
             mask[:, has] = d <= radius_px
-        return mask
+        return mask, has
 
     @staticmethod
     def _unique(q: np.ndarray, t: np.ndarray, dist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -28,10 +28,14 @@ class BetaField(nn.Module):
         self.register_buffer("counts", torch.zeros(n * n * n, dtype=torch.float64))
         self.log_beta = nn.Parameter(torch.tensor(float(cfg.beta_fixed)).log(), requires_grad=cfg.beta_mode == "global")
 
+    def voxel_ijk(self, x: torch.Tensor) -> torch.Tensor:
+        """(..., 3) normalised points -> (..., 3) integer voxel coordinates of the counter."""
+        return ((x.detach().clamp(-1, 1 - 1e-6) + 1) / 2 * self.cfg.beta_voxels).long()
+
     def voxel_index(self, x: torch.Tensor) -> torch.Tensor:
         """(..., 3) normalised points -> (...) flat counter index."""
         n = self.cfg.beta_voxels
-        i = ((x.detach().clamp(-1, 1 - 1e-6) + 1) / 2 * n).long()
+        i = self.voxel_ijk(x)
         return (i[..., 0] * n + i[..., 1]) * n + i[..., 2]
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:

@@ -87,14 +87,11 @@ def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intr
 
     n = beta.cfg.beta_voxels
 
-    def voxel_ijk(x: torch.Tensor) -> torch.Tensor:
-        flat = beta.voxel_index(model.bound.normalise(x))
-        return torch.stack([flat // (n * n), flat // n % n, flat % n], dim=-1)
-
     def jump_fn(box_lo: torch.Tensor, box_hi: torch.Tensor) -> torch.Tensor:
         # sdf_fn jumps to 1 where the observed voxels end; voxel indices grow with the coordinates,
         # so the box's points fall in the voxels between its corners' ones.
-        return mixed_voxel_boxes(observed.reshape(n, n, n), voxel_ijk(box_lo), voxel_ijk(box_hi))
+        return mixed_voxel_boxes(observed.reshape(n, n, n), beta.voxel_ijk(model.bound.normalise(box_lo)),
+                                 beta.voxel_ijk(model.bound.normalise(box_hi)))
 
     with torch.no_grad():
         mesh = extract_mesh(sdf_fn, model.color_world, lo, hi, resolution, sparse=sparse, jump_fn=jump_fn)
