@@ -80,6 +80,10 @@ class RenderConfig:
     """Importance samples per ray (with gradient)."""
     n_uniform: int = 32
     """Extra stratified samples per ray (with gradient)."""
+    probe_stop_tau: float | None = 16.0
+    """A ray's probes stop once its optical depth passes this (transmittance e^-16 = 1e-7:
+    the weights skipped sum to less, and `render/probe.py` evaluates front to back in
+    segments); None evaluates every probe. The same samples either way, computed faster."""
     near_m: float = 0.05
     """Closest sample distance from the camera, metres."""
     beta_mode: str = "adaptive"

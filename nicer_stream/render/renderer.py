@@ -13,6 +13,7 @@ from nicer_stream.geometry.camera import pixel_grid, rays_world
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.render.density import laplace_density
+from nicer_stream.render.probe import composite_deltas, probe_sdf, probe_weights
 from nicer_stream.render.sampling import ray_box, sample_pdf, stratified
 from nicer_stream.render.volume import accumulate, render_weights
 from nicer_stream.types import Intrinsics
@@ -43,12 +44,6 @@ class RenderOutput:
     sdf_grad: torch.Tensor
 
 
-def _composite_deltas(t: torch.Tensor, far: torch.Tensor) -> torch.Tensor:
-    """(R, S) sorted sample distances -> interval lengths; the last runs to `far`."""
-    last = (far[:, None] - t[:, -1:]).clamp_min(1e-4)
-    return torch.cat([t[:, 1:] - t[:, :-1], last], dim=-1)
-
-
 def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderConfig,
                 use_fine: bool = True, jitter: bool = True, depth_only: bool = False) -> RenderOutput:
     """Differentiable rendering of `rays` (w.r.t. scene parameters and ray origins/dirs).
@@ -64,10 +59,8 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
     r = o.shape[0]
     with torch.no_grad():
         t_probe = stratified(near, far, cfg.n_probe, jitter)
-        x_probe = (o[:, None] + t_probe[..., None] * d[:, None]).reshape(-1, 3)
-        sdf_p = probe_sdf(model, x_probe, use_fine).reshape(r, -1)
-        sig_p = laplace_density(sdf_p, beta(x_probe).reshape(sdf_p.shape) if beta.cfg.beta_mode == "adaptive" else beta(x_probe))
-        w_p = render_weights(sig_p, _composite_deltas(t_probe, far))
+        x_probe = o[:, None] + t_probe[..., None] * d[:, None]
+        w_p = probe_weights(model, beta, x_probe, composite_deltas(t_probe, far), use_fine, cfg.probe_stop_tau)
         mids = (t_probe[:, 1:] + t_probe[:, :-1]) / 2
         bins = torch.cat([near[:, None], mids, far[:, None]], -1)
         t_imp = sample_pdf(bins, w_p, cfg.n_importance, jitter)
@@ -80,7 +73,7 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
     bx = bx.reshape(r, s) if bx.dim() else bx
     if torch.is_grad_enabled():
         geo = model.geometry(x, use_fine=use_fine, with_grad=True)
-        w = render_weights(laplace_density(geo.sdf.reshape(r, s), bx), _composite_deltas(t, far))
+        w = render_weights(laplace_density(geo.sdf.reshape(r, s), bx), composite_deltas(t, far))
         normal = geo.grad / geo.grad.norm(dim=-1, keepdim=True).clamp_min(1e-6)
         rgb_s = model.color(x, normal, view, geo.z_coarse, geo.z_fine)
         sdf_grad = geo.grad
@@ -88,7 +81,7 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
         # Inference: weights from the SDF alone, then normals and colour only at the
         # samples that can matter (a few per ray).
         sdf = probe_sdf(model, x, use_fine)
-        w = render_weights(laplace_density(sdf.reshape(r, s), bx), _composite_deltas(t, far))
+        w = render_weights(laplace_density(sdf.reshape(r, s), bx), composite_deltas(t, far))
         normal, rgb_s = x.new_zeros(x.shape[0], 3), x.new_zeros(x.shape[0], 3)
         sdf_grad = x.new_zeros(0, 3)
         keep = (w.reshape(-1) > 1e-4).nonzero()[:, 0]
@@ -107,19 +100,6 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
         points=x,
         sdf_grad=sdf_grad,
     )
-
-
-# Probe points per forward pass: at the paper's sizes (8096 rays x 640 probes = 5.2M points)
-# one pass would allocate ~1.3 GB per hidden layer; chunks of this size stay in cache-sized
-# allocations. `fast` (1024 x 32) fits in one chunk.
-PROBE_CHUNK = 1 << 17
-
-
-def probe_sdf(model: SceneModel, x: torch.Tensor, use_fine: bool, chunk: int = PROBE_CHUNK) -> torch.Tensor:
-    """SDF (N,) at normalised points x (N, 3), without gradient, `chunk` points at a time."""
-    if x.shape[0] <= chunk:
-        return model.geometry.sdf(x, use_fine=use_fine)
-    return torch.cat([model.geometry.sdf(x[i:i + chunk], use_fine=use_fine) for i in range(0, x.shape[0], chunk)])
 
 
 def rays_for_pixels(uv: torch.Tensor, intr: Intrinsics, T_world_cam: torch.Tensor) -> RayBatch:

@@ -32,8 +32,16 @@ class SinkWorker(ForwardingSink):
         self.error: Exception | None = None
         self._queue: queue.Queue = queue.Queue(maxsize)
         self._closed = False
-        self._thread = threading.Thread(target=self._loop, name="sinks", daemon=True)
+        # torch.set_num_threads on a new thread also changes the count that threads not yet
+        # initialised by torch take up, the caller included (a run with a sink then mapped on one
+        # core of two: the demo 2x slower). So the worker sets its own count first, then the
+        # caller sets its count again.
+        caller_threads = torch.get_num_threads()
+        started = threading.Event()
+        self._thread = threading.Thread(target=self._loop, args=(started,), name="sinks", daemon=True)
         self._thread.start()
+        started.wait()
+        torch.set_num_threads(caller_threads)
 
     @property
     def pending(self) -> int:
@@ -44,8 +52,9 @@ class SinkWorker(ForwardingSink):
         if not self._closed:
             self._queue.put(fn)
 
-    def _loop(self) -> None:
+    def _loop(self, started: threading.Event) -> None:
         torch.set_num_threads(self.threads)
+        started.set()
         while (fn := self._queue.get()) is not _STOP:
             if self.error is not None:
                 continue  # drain: the sink failed

@@ -201,3 +201,31 @@ def test_probe_sdf_in_chunks_equals_one_pass():
         assert torch.allclose(probe_sdf(model, x, True, chunk=64), whole, atol=1e-6)
         assert torch.equal(probe_sdf(model, x, True), whole)  # one chunk: the same call
         assert torch.allclose(whole, model.geometry(x).sdf, atol=1e-6)  # the SDF alone: the same value
+
+
+def test_probe_early_stop_matches_every_probe():
+    """Stopping a ray's probes once its optical depth passes stop_tau changes no weight by more
+    than exp(-stop_tau), and places the same importance samples."""
+    from nicer_stream.render.probe import composite_deltas, probe_weights
+    from nicer_stream.render.sampling import ray_box, sample_pdf, stratified
+    model, beta = _model(), BetaField(RC)
+    T = _pose_at_centre()
+    rays = rays_for_pixels(pixel_grid(INTR), INTR, T)
+    o, d = BOUND.normalise(rays.origins), rays.dirs
+    near, far = ray_box(o, d)
+    near = near.clamp_min(0.01)
+    t = stratified(near, far, 256, jitter=False)
+    x = o[:, None] + t[..., None] * d[:, None]
+    deltas = composite_deltas(t, far)
+    ref = probe_weights(model, beta, x, deltas, True, stop_tau=None)
+    for tau in (8.0, 16.0):
+        fast = probe_weights(model, beta, x, deltas, True, stop_tau=tau, segment=32)
+        assert (fast - ref).abs().max() <= math.exp(-tau)
+        assert ((fast == 0) & (ref > 0)).any()  # the sphere saturates every ray: some probes were skipped
+    fast = probe_weights(model, beta, x, deltas, True, stop_tau=16.0, segment=32)
+    mids = (t[:, 1:] + t[:, :-1]) / 2
+    bins = torch.cat([near[:, None], mids, far[:, None]], -1)
+    torch.testing.assert_close(sample_pdf(bins, fast, 32, False), sample_pdf(bins, ref, 32, False), atol=1e-5, rtol=0)
+    # Too few probes for two runs: the one pass, bit for bit.
+    assert torch.equal(probe_weights(model, beta, x[:, :48], deltas[:, :48], True, stop_tau=16.0, segment=32),
+                       probe_weights(model, beta, x[:, :48], deltas[:, :48], True, stop_tau=None))
