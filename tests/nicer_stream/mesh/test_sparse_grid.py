@@ -72,7 +72,10 @@ def _assert_same_surface(sparse: np.ndarray, dense: np.ndarray) -> None:
 
 def _assert_same_mesh(a, b) -> None:
     assert len(a.faces) > 0
-    assert np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+    # The same faces; vertices to float rounding (the SDF of a block and of the whole grid go
+    # through numpy/torch passes of other lengths: on an AVX-512 CPU 1-ulp apart).
+    assert np.array_equal(a.faces, b.faces)
+    np.testing.assert_allclose(a.vertices, b.vertices, rtol=0, atol=1e-6)
 
 
 @pytest.mark.parametrize("name", sorted(SDFS))

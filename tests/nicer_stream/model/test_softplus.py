@@ -46,7 +46,8 @@ def test_kernel_passes_nan_and_infinity_through():
     z = torch.tensor([float("nan"), float("inf"), -float("inf"), 1.0])
     sp, s = softplus_and_sigmoid(z)
     assert torch.isnan(sp[0]) and torch.isnan(s[0])  # a diverged map stays visible
-    assert sp[1] == float("inf") and s[1] == 1.0
+    # 1 to a float32 ulp: with AVX-512, -ffast-math builds the division from a reciprocal estimate.
+    assert sp[1] == float("inf") and 1.0 - 1.2e-7 <= s[1] <= 1.0
     assert sp[2] == 0.0 and s[2] < 1e-30
     assert torch.allclose(sp[3], torch.tensor(1.0))
 
