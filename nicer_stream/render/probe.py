@@ -21,9 +21,10 @@ from nicer_stream.render.volume import render_weights
 # allocations. `fast` (1024 x 32) fits in one chunk.
 PROBE_CHUNK = 1 << 17
 # Probes per ray evaluated between two checks of the optical depth. Per iteration at the paper's
-# sizes (640 probes; runs/s32/probe_ab.py, runs of 80): mapping 19.3 -> 17.9 s, tracking 1.23 ->
-# 0.99 s. At `fast` sizes (32 probes, runs of 8) the four smaller passes cost more than they
-# skipped: tracking 0.040 -> 0.048 s.
+# sizes (640 probes; runs/s32/probe_ab.py, one pass then the early stop, one process): runs of 64
+# mapping 20.6 -> 18.3 s, tracking 1.13 -> 1.03 s; runs of 80 (another invocation) 19.3 -> 17.9 s,
+# 1.23 -> 0.99 s. At `fast` sizes (32 probes, runs of 8) the four smaller passes cost more than
+# they skipped: tracking 0.040 -> 0.048 s.
 SEGMENT = 64
 
 
@@ -58,9 +59,8 @@ def probe_weights(model: SceneModel, beta: BetaField, x: torch.Tensor, deltas: t
     sigma = deltas.new_zeros(r, p)
     tau = deltas.new_zeros(r)
     alive = torch.arange(r, device=deltas.device)
-    step = segment
-    for c0 in range(0, p, step):
-        c1 = min(c0 + step, p)
+    for c0 in range(0, p, segment):
+        c1 = min(c0 + segment, p)
         xs = x[alive, c0:c1]
         sdf = probe_sdf(model, xs.reshape(-1, 3), use_fine).reshape(xs.shape[:2])
         sig = laplace_density(sdf, beta(xs))
