@@ -15,6 +15,7 @@ from nicer_stream.config import SlamConfig
 from nicer_stream.geometry.se3 import se3_exp
 from nicer_stream.losses import LossTerms, total_loss
 from nicer_stream.mapping.map_frame import MapFrame
+from nicer_stream.denormals import flush_denormals
 from nicer_stream.mapping.objective import mapping_terms
 from nicer_stream.mapping.ray_sampling import batch_rays
 from nicer_stream.model.scene import SceneModel
@@ -78,6 +79,7 @@ class Mapper:
         x = torch.rand(n, 3, generator=self.gen).to(dev) * 2 - 1
         return self.model.geometry(x, use_fine=use_fine, with_grad=True).grad
 
+    @flush_denormals()
     def optimise(self, frames: list[MapFrame], poses: dict[int, torch.Tensor], iters: int,
                  ba_indices: set[int] = frozenset(), fixed_scale_shift: tuple[float, float] | None = None,
                  progress=None, time_budget_s: float | None = None,

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from nicer_stream.denormals import flush_denormals
 from nicer_stream.config import RenderConfig
 from nicer_stream.geometry.camera import pixel_grid, rays_world
 from nicer_stream.model.scene import SceneModel
@@ -119,6 +120,7 @@ class RenderedImage:
 
 
 @torch.no_grad()
+@flush_denormals()
 def render_image(model: SceneModel, beta: BetaField, T_world_cam: torch.Tensor, intr: Intrinsics,
                  cfg: RenderConfig, use_fine: bool = True, depth_only: bool = False) -> RenderedImage:
     """Render a full view without autograd, in chunks (gradients are never needed here);

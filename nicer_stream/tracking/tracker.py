@@ -13,6 +13,7 @@ from dataclasses import dataclass, replace
 import torch
 
 from nicer_stream.config import RenderConfig, TrackingConfig
+from nicer_stream.denormals import flush_denormals
 from nicer_stream.errors import UserError
 from nicer_stream.geometry.se3 import invert, se3_exp, se3_log
 from nicer_stream.losses import rgb_l1
@@ -62,6 +63,7 @@ class Tracker:
         ok = self.beta.counts[self.beta.voxel_index(x)] > self.cfg.min_count
         return ok if ok.any() else None
 
+    @flush_denormals()
     def track(self, frame: MapFrame, T_init: torch.Tensor) -> TrackingResult:
         with self.model.frozen():
             if self.cfg.optimizer == "gauss_newton":
