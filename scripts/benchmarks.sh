@@ -29,8 +29,8 @@ sys.exit(f"imported from outside {sys.argv[1]}: {bad}" if bad else 0)' "$tree")
   rm -rf "$dir" && mkdir -p "$dir"
   echo "== $(git -C "$tree" rev-parse --short HEAD) ($tree) -> $dir"
   kernel_cache "$tree"  # built here, before the clock starts
-  for m in grid_kernel softplus; do
-    if [ -f "$tree/nicer_stream/model/$m.py" ]; then (cd "$tree" && PYTHONPATH="$tree" $py -m "nicer_stream.model.$m" >/dev/null); fi
+  for m in model/grid_kernel model/softplus denormals; do
+    if [ -f "$tree/nicer_stream/$m.py" ]; then (cd "$tree" && PYTHONPATH="$tree" $py -m "nicer_stream.${m//\//.}" >/dev/null); fi
   done
   # shellcheck disable=SC2086  # EXTRA is split into arguments on purpose
   (cd "$tree" && PYTHONPATH="$tree" /usr/bin/time -f "%e %M" -o "$dir/time.txt" $py -m nicer_stream.cli.main run \
