@@ -28,9 +28,15 @@ def enabled() -> bool:
     return os.environ.get("NICER_STREAM_FTZ", "1") != "0" and os.environ.get("NICER_STREAM_KERNELS", "1") != "0"
 
 
-def _set(on: bool) -> None:
+def _helper():
+    """The compiled helper, or None where it cannot be built or does not know this CPU."""
     mod = _KERNEL.module()
-    if mod is not None and mod.supported():
+    return mod if mod is not None and mod.supported() else None
+
+
+def _set(on: bool) -> None:
+    mod = _helper()
+    if mod is not None:
         mod.set_flush(on, torch.get_num_threads())
     else:
         torch.set_flush_denormal(on)
@@ -38,8 +44,8 @@ def _set(on: bool) -> None:
 
 def thread_flags() -> list[bool]:
     """FTZ/DAZ of the calling thread and each of its OpenMP workers (tests), or [] without the helper."""
-    mod = _KERNEL.module()
-    return list(mod.get_flush(torch.get_num_threads())) if mod is not None and mod.supported() else []
+    mod = _helper()
+    return list(mod.get_flush(torch.get_num_threads())) if mod is not None else []
 
 
 @contextlib.contextmanager

@@ -12,10 +12,10 @@ from dataclasses import dataclass
 import torch
 
 from nicer_stream.config import SlamConfig
+from nicer_stream.denormals import flush_denormals
 from nicer_stream.geometry.se3 import se3_exp
 from nicer_stream.losses import LossTerms, total_loss
 from nicer_stream.mapping.map_frame import MapFrame
-from nicer_stream.denormals import flush_denormals
 from nicer_stream.mapping.objective import mapping_terms
 from nicer_stream.mapping.ray_sampling import batch_rays
 from nicer_stream.model.scene import SceneModel

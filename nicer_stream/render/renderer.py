@@ -8,8 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from nicer_stream.denormals import flush_denormals
 from nicer_stream.config import RenderConfig
+from nicer_stream.denormals import flush_denormals
 from nicer_stream.geometry.camera import pixel_grid, rays_world
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField

@@ -1,7 +1,7 @@
 // Flush-to-zero and denormals-are-zero for the calling thread and its OpenMP workers (the
 // threads torch's parallel ops, MKL and oneDNN run on). `torch.set_flush_denormal` sets only the
 // calling thread, so half of a 2-thread product kept the slow path. The setting is per thread
-// and stays until changed: runtime/denormals.py scopes it.
+// and stays until changed: nicer_stream/denormals.py scopes it.
 #include <torch/extension.h>
 #include <omp.h>
 #if defined(__x86_64__) || defined(__i386__)
