@@ -3,9 +3,11 @@ neighbouring keyframes and the SLAM's own pose estimates (no ground truth, no we
 
 The depth is in the poses' unit, so its scale and shift are fixed at (1, 0) (`stereo.scale =
 'fixed'`): the map is pulled to the scale of its own trajectory, never to a per-frame fit. A
-keyframe's prior is computed when a mapping call first includes it, from the keyframes nearest to it (one before and one
-after where they exist), and once more when a later neighbour makes a one-sided pair
-two-sided."""
+keyframe's prior is computed when a mapping call first includes it, from one partner before it
+and one after where they exist, and once more when a later partner makes a one-sided pair
+two-sided. With the frontend's landmarks, the partners are the frames (keyframes or recent ones)
+at the baseline `stereo.target_baseline` asks for and the sweep covers the landmarks' depths;
+without them, the nearest keyframes over the scene bound's depths."""
 from __future__ import annotations
 
 import time
@@ -15,6 +17,7 @@ import numpy as np
 import torch
 
 from nicer_stream.config import StereoConfig
+from nicer_stream.frontend.triangulate import project
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.priors.normals_from_depth import fill_nearest, normals_from_depth
@@ -38,6 +41,41 @@ def depth_range(T_world_cam: np.ndarray, bound: SceneBound, near_frac: float = 0
     return near_frac * far, far
 
 
+def seen_depths(T_world_cam: np.ndarray, points: np.ndarray | None, intr, min_points: int) -> np.ndarray | None:
+    """z-depths (S,) of the world points (P, 3) in front of the camera at T_world_cam and inside
+    its image; None with fewer than `min_points` of them."""
+    if points is None or len(points) < min_points:
+        return None
+    uv, z = project(T_world_cam, np.asarray(points, np.float64), intr)
+    seen = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height)
+    return z[seen] if seen.sum() >= min_points else None
+
+
+def landmark_depth_range(T_world_cam: np.ndarray, points: np.ndarray | None, intr, margin: float,
+                         min_points: int) -> tuple[float, float] | None:
+    """(near, far) z-depths from sparse world points (P, 3) seen in the image at T_world_cam: their
+    2nd and 98th depth percentiles, near / margin and far * margin; None with fewer than
+    `min_points` of them in front of the camera and inside the image, or margin <= 0."""
+    z = seen_depths(T_world_cam, points, intr, min_points) if margin > 0 else None
+    if z is None:
+        return None
+    lo, hi = np.percentile(z, [2, 98])
+    return float(lo / margin), float(hi * margin)
+
+
+def partners_by_baseline(k: int, centres: dict[int, np.ndarray], depth: float, target: float) -> tuple[int, ...]:
+    """One candidate before `k` and one after (by index), each the one whose baseline to k (camera
+    centres (3,), k's included) over `depth` is nearest `target` in ratio; candidates at k's own
+    centre never."""
+    picked = []
+    for side in ([c for c in centres if c < k], [c for c in centres if c > k]):
+        ratio = {c: float(np.linalg.norm(centres[c] - centres[k])) / depth for c in side}
+        ok = [c for c in side if ratio[c] > 0]
+        if ok:
+            picked.append(min(ok, key=lambda c: (abs(np.log(ratio[c] / target)), abs(c - k))))
+    return tuple(sorted(picked))
+
+
 def stereo_normals(depth: np.ndarray, intr) -> np.ndarray:
     """(H, W) depth with 0 where unknown -> (H, W, 3) camera normals, zero where unknown: from
     the depth median-filtered (stereo noise) with holes filled only for the differences."""
@@ -57,35 +95,68 @@ class StereoPriors:
     def __init__(self, params: StereoConfig = StereoConfig()) -> None:
         self.params = params
         self.used: dict[int, tuple[int, ...]] = {}  # keyframe -> partners its prior came from
+        self.recent: dict[int, np.ndarray] = {}  # the last `partner_frames` images (H, W, 3), by index
         self.seconds = 0.0
 
+    def observe(self, index: int, rgb: np.ndarray) -> None:
+        """Keep frame `index`'s image (H, W, 3) as a partner candidate."""
+        self.recent[index] = rgb
+        for old in sorted(self.recent)[:-self.params.partner_frames or None]:
+            del self.recent[old]
+
     def update(self, window: list[int], frames: dict[int, MapFrame], poses: dict[int, torch.Tensor],
-               keyframes: list[int], bound: SceneBound) -> list[int]:
-        """Compute the priors the window's frames lack (or have one-sided); returns those updated."""
+               keyframes: list[int], bound: SceneBound, landmarks: np.ndarray | None = None) -> list[int]:
+        """Compute the priors the window's frames lack (or have one-sided); returns those updated.
+        `landmarks` (P, 3) world points (the frontend's) narrow each sweep's depth range."""
         t0 = time.perf_counter()
         candidates = [k for k in keyframes if k in frames and k in poses]
         done = []
         for k in window:
             if k not in frames or k not in poses:
                 continue
-            partners = partners_of(k, [c for c in candidates if c != k])
+            images = self._images(frames[k], frames, candidates, poses)
+            partners = self._partners(k, images, poses, frames[k].intr, landmarks)
+            partners = partners or partners_of(k, [c for c in candidates if c != k])
             if not partners or partners == self.used.get(k):
                 continue
             old = self.used.get(k)
             two_sided = min(partners) < k < max(partners)
             if old is not None and (min(old) < k < max(old) or not two_sided):
                 continue  # already two-sided, or no better now
-            self._compute(frames[k], [frames[p] for p in partners], poses, bound)
+            self._compute(frames[k], [(images[p], poses[p]) for p in partners], poses, bound, landmarks)
             self.used[k] = partners
             done.append(k)
         self.seconds += time.perf_counter() - t0
         return done
 
-    def _compute(self, f: MapFrame, partners: list[MapFrame], poses: dict[int, torch.Tensor], bound: SceneBound) -> None:
+    def _images(self, f: MapFrame, frames: dict[int, MapFrame], keyframes: list[int],
+                poses: dict[int, torch.Tensor]) -> dict[int, np.ndarray]:
+        """Partner candidates' images at f's resolution (halved keyframes are not), by index."""
+        out = {c: frames[c].rgb.cpu().numpy() for c in keyframes if c != f.index}
+        out.update({i: rgb for i, rgb in self.recent.items() if i != f.index and i in poses})
+        return {i: rgb for i, rgb in out.items() if rgb.shape == tuple(f.rgb.shape)}
+
+    def _partners(self, k: int, images: dict[int, np.ndarray], poses: dict[int, torch.Tensor], intr,
+                  landmarks: np.ndarray | None) -> tuple[int, ...]:
+        """Partners by baseline (`target_baseline` of the median landmark depth); () where that
+        cannot be judged (no landmarks, or switched off)."""
+        T = poses[k].double().cpu().numpy()
+        z = seen_depths(T, landmarks, intr, self.params.min_landmarks) if self.params.target_baseline > 0 else None
+        if z is None:
+            return ()
+        centres = {i: poses[i].double().cpu().numpy()[:3, 3] for i in list(images) + [k]}
+        return partners_by_baseline(k, centres, float(np.median(z)), self.params.target_baseline)
+
+    def _compute(self, f: MapFrame, partners: list[tuple[np.ndarray, torch.Tensor]], poses: dict[int, torch.Tensor],
+                 bound: SceneBound, landmarks: np.ndarray | None = None) -> None:
+        """f's priors from `partners`: (image (H, W, 3), T_world_cam (4, 4)) pairs."""
         T = poses[f.index].double().cpu().numpy()
         near, far = depth_range(T, bound)
+        seen = landmark_depth_range(T, landmarks, f.intr, self.params.landmark_margin, self.params.min_landmarks)
+        if seen is not None and max(near, seen[0]) < min(far, seen[1]):
+            near, far = max(near, seen[0]), min(far, seen[1])
         depth = sweep_depth(f.rgb.cpu().numpy(), T,
-                               [(p.rgb.cpu().numpy(), poses[p.index].double().cpu().numpy()) for p in partners],
+                               [(rgb, T_p.double().cpu().numpy()) for rgb, T_p in partners],
                                f.intr, near, far, self.params)
         f.depth_prior = torch.as_tensor(depth, device=f.rgb.device)
         f.normal_prior = torch.as_tensor(stereo_normals(depth, f.intr), device=f.rgb.device)

@@ -137,6 +137,8 @@ class SlamSystem:
 
     def _step(self, frame: Frame, priors: Priors | None) -> list[Event]:
         mf = MapFrame.from_frame(frame, priors, self.device) if np.isfinite(frame.rgb).all() else None
+        if self.stereo is not None and mf is not None:
+            self.stereo.observe(frame.index, frame.rgb)
         if self.frontend is not None and mf is not None:
             with self._frontend_timer():
                 self.frontend.observe(frame.index, frame.rgb, frame.intrinsics)
@@ -306,7 +308,7 @@ class SlamSystem:
         window = [mf] if second is None else [mf, second]
         if self.stereo is not None:
             idx = [f.index for f in window]
-            self.stereo.update(idx, {f.index: f for f in window}, self.poses, idx, self.bound)
+            self.stereo.update(idx, {f.index: f for f in window}, self.poses, idx, self.bound, self._landmarks())
         # One long call from the sphere, like `map`: the colour grids join early.
         label = f"first mapping (frame{'s' if second else ''} {','.join(str(f.index) for f in window)})"
         stats = self.mapper.optimise(window, self.poses, cfg.mapping.first_iters,
@@ -445,6 +447,12 @@ class SlamSystem:
     def _progress(self, label: str) -> MappingProgress | None:
         return self.progress(label) if self.progress is not None else None
 
+    def _landmarks(self) -> np.ndarray | None:
+        """The frontend's landmarks (P, 3), world frame, or None without a frontend or landmarks."""
+        if self.frontend is None or not self.frontend.landmarks:
+            return None
+        return np.stack(list(self.frontend.landmarks.values()))
+
     def _map(self, current: int, iters: int, bundle_adjust: bool = True, closing: bool = False) -> list[MapUpdated]:
         """Plan a mapping call and submit it; the calls that have finished come back as events
         (this one at once with the inline executor)."""
@@ -452,7 +460,7 @@ class SlamSystem:
         anchor = self.order[0]
         ba = ba_frames(window, current, anchor) if bundle_adjust and self.cfg.mapping.ba_start < 1.0 else set()
         if self.stereo is not None:
-            self.stereo.update(window, self.frames, self.poses, self.keyframes, self.bound)
+            self.stereo.update(window, self.frames, self.poses, self.keyframes, self.bound, self._landmarks())
         mode = self.cfg.loss.slam_prior_alignment
         if mode == "map":
             for k in window:
