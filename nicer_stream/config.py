@@ -120,7 +120,10 @@ class LossConfig:
     slam_prior_alignment: str = "lstsq"
     """SLAM mapping: 'lstsq' refits each frame's depth-prior (w, q) every iteration (Eq. 10);
     'map' fits them once, to the depth the map renders when the frame is first mapped;
-    'flow' fixes them at every mapping call by flow triangulation with the estimated poses."""
+    'flow' fixes them at every mapping call by flow triangulation with the estimated poses;
+    'stereo' fixes them when a keyframe is first mapped (and again when its stereo pair becomes
+    two-sided) by a robust affine fit to `--priors stereo`'s plane-sweep depth, which is in the
+    poses' unit (the frontend then runs, for its landmarks)."""
     first_depth_median_m: float = 2.0
     """Scale rule of the first SLAM mapping: the first frame's depth-prior median is taken
     as this many metres, its shift comes from the normal prior (`mapping/depth_shift.py`;
