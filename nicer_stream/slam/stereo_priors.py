@@ -19,7 +19,6 @@ import torch
 from nicer_stream.config import StereoConfig
 from nicer_stream.frontend.triangulate import project
 from nicer_stream.mapping.map_frame import MapFrame
-from nicer_stream.mapping.prior_alignment import robust_affine_fit
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.priors.normals_from_depth import fill_nearest, normals_from_depth
 from nicer_stream.priors.stereo import sweep_depth
@@ -93,10 +92,8 @@ def stereo_normals(depth: np.ndarray, intr) -> np.ndarray:
 class StereoPriors:
     """Fills `depth_prior`, `normal_prior` and `depth_scale_shift` of keyframes before mapping."""
 
-    def __init__(self, params: StereoConfig = StereoConfig(), align_only: bool = False) -> None:
-        """`align_only`: keep a keyframe's own (relative) depth prior and fix its (w, q) by a robust
-        affine fit to the sweep's confident depths (`loss.slam_prior_alignment = 'stereo'`)."""
-        self.params, self.align_only = params, align_only
+    def __init__(self, params: StereoConfig = StereoConfig()) -> None:
+        self.params = params
         self.used: dict[int, tuple[int, ...]] = {}  # keyframe -> partners its prior came from
         self.recent: dict[int, np.ndarray] = {}  # the last `partner_frames` images (H, W, 3), by index
         self.seconds = 0.0
@@ -115,7 +112,7 @@ class StereoPriors:
         candidates = [k for k in keyframes if k in frames and k in poses]
         done = []
         for k in window:
-            if k not in frames or k not in poses or (self.align_only and frames[k].depth_prior is None):
+            if k not in frames or k not in poses:
                 continue
             images = self._images(frames[k], frames, candidates, poses)
             partners = self._partners(k, images, poses, frames[k].intr, landmarks)
@@ -161,14 +158,6 @@ class StereoPriors:
         depth = sweep_depth(f.rgb.cpu().numpy(), T,
                                [(rgb, T_p.double().cpu().numpy()) for rgb, T_p in partners],
                                f.intr, near, far, self.params)
-        if self.align_only:
-            prior = f.depth_prior.reshape(-1)
-            metric = torch.as_tensor(depth, device=prior.device).reshape(-1)
-            ok = (metric > 0) & (prior > 0) & torch.isfinite(prior)
-            wq = robust_affine_fit(prior[ok], metric[ok])
-            if wq is not None and wq[0] > 0:  # else the previous (w, q), or Eq. 10's refit per iteration
-                f.depth_scale_shift = wq
-            return
         f.depth_prior = torch.as_tensor(depth, device=f.rgb.device)
         f.normal_prior = torch.as_tensor(stereo_normals(depth, f.intr), device=f.rgb.device)
         f.depth_scale_shift = (1.0, 0.0) if self.params.scale == "fixed" else None

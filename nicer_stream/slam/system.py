@@ -67,9 +67,8 @@ class SlamSystem:
                  progress: Callable[[str], MappingProgress | None] | None = None,
                  stereo: bool = False, should_stop: Callable[[], bool] | None = None,
                  mapping: MappingExecutor | None = None) -> None:
-        if cfg.loss.slam_prior_alignment not in ("lstsq", "map", "flow", "stereo"):
-            raise UserError("loss.slam_prior_alignment must be lstsq, map, flow or stereo, "
-                            f"got {cfg.loss.slam_prior_alignment!r}")
+        if cfg.loss.slam_prior_alignment not in ("lstsq", "map", "flow"):
+            raise UserError(f"loss.slam_prior_alignment must be lstsq, map or flow, got {cfg.loss.slam_prior_alignment!r}")
         if cfg.tracking.init not in ("previous", "constant_velocity", "flow"):
             raise UserError(f"tracking.init must be previous, constant_velocity or flow, got {cfg.tracking.init!r}")
         if cfg.mapping.init not in ("first_frame", "two_view"):
@@ -87,10 +86,8 @@ class SlamSystem:
         if cfg.stereo.scale not in ("fixed", "fit"):
             raise UserError(f"stereo.scale must be fixed or fit, got {cfg.stereo.scale!r}")
         self.cfg, self.device = cfg, torch.device(device)
-        # `--priors stereo`: keyframe depth/normal priors by plane sweep before each mapping call;
-        # with another depth prior and `slam_prior_alignment = 'stereo'`, the sweep fixes its (w, q).
-        align = cfg.loss.slam_prior_alignment == "stereo" and not stereo
-        self.stereo = StereoPriors(cfg.stereo, align_only=align) if stereo or align else None
+        # `--priors stereo`: keyframe depth/normal priors by plane sweep before each mapping call.
+        self.stereo = StereoPriors(cfg.stereo) if stereo else None
         self.progress = progress
         # Polled by mapping iterations and between the held frames of the two-view start:
         # a stop request ends them early (the caller then writes what exists).
@@ -119,7 +116,7 @@ class SlamSystem:
         self.pending_raw: list[Frame] = []
         self.init_note = ""
         # 'auto': the frontend where the depth prior needs good poses (stereo) or starts the SLAM.
-        use = cfg.tracking.frontend == "classical" or (cfg.tracking.frontend == "auto" and self.stereo is not None)
+        use = cfg.tracking.frontend == "classical" or (cfg.tracking.frontend == "auto" and stereo)
         self.frontend = ClassicalFrontend(cfg.frontend) if use else None
         self.frontend_seconds = 0.0
         self._fview = None  # (frame index, frontend two-view result) of the start without priors

@@ -122,17 +122,3 @@ def test_a_source_without_any_ground_truth_runs_through_auto_to_the_end(tmp_path
     assert any(n.startswith("auto chose stereo") for n in s["notes"])
     assert len((out / "trajectory.tum").read_text().splitlines()) >= 6
 
-
-def test_align_only_keeps_a_relative_prior_and_fixes_its_scale_and_shift_to_the_sweep():
-    src = list(open_source("synthetic:room?frames=40", SourceOptions(max_frames=16)))
-    poses = {f.index: torch.as_tensor(f.gt_pose, dtype=torch.float32) for f in src}
-    bound = SceneBound((0.0, 0.0, 0.0), 4.0, "config")
-    frames = {f.index: MapFrame.from_frame(f.without_ground_truth(), None, torch.device("cpu")) for f in src[5:16:5]}
-    for k, f in frames.items():  # a relative prior: GT depth in other units, with a shift
-        f.depth_prior = torch.as_tensor(3.0 * src[k].gt_depth + 0.5)
-    before = frames[10].depth_prior.clone()
-    sp = StereoPriors(StereoConfig(), align_only=True)
-    assert sp.update([5, 10, 15], frames, poses, [5, 10, 15], bound, _world_points(src[10], 300)) == [5, 10, 15]
-    w, q = frames[10].depth_scale_shift
-    assert abs(w - 3.0) < 0.06 and abs(q - 0.5) < 0.1, (w, q)  # prior = w * metric depth + q
-    assert torch.equal(frames[10].depth_prior, before) and frames[10].normal_prior is None
