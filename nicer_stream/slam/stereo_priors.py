@@ -18,6 +18,7 @@ import torch
 
 from nicer_stream.config import StereoConfig
 from nicer_stream.frontend.triangulate import project
+from nicer_stream.geometry.camera import in_image
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.priors.normals_from_depth import fill_nearest, normals_from_depth
@@ -47,7 +48,7 @@ def seen_depths(T_world_cam: np.ndarray, points: np.ndarray | None, intr, min_po
     if points is None or len(points) < min_points:
         return None
     uv, z = project(T_world_cam, np.asarray(points, np.float64), intr)
-    seen = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] < intr.width) & (uv[:, 1] >= 0) & (uv[:, 1] < intr.height)
+    seen = (z > 0) & in_image(uv, intr)
     return z[seen] if seen.sum() >= min_points else None
 
 
@@ -110,11 +111,12 @@ class StereoPriors:
         `landmarks` (P, 3) world points (the frontend's) narrow each sweep's depth range."""
         t0 = time.perf_counter()
         candidates = [k for k in keyframes if k in frames and k in poses]
+        pool = self._images(frames, candidates, poses)
         done = []
         for k in window:
             if k not in frames or k not in poses:
                 continue
-            images = self._images(frames[k], frames, candidates, poses)
+            images = {i: rgb for i, rgb in pool.items() if i != k and rgb.shape == tuple(frames[k].rgb.shape)}
             partners = self._partners(k, images, poses, frames[k].intr, landmarks)
             partners = partners or partners_of(k, [c for c in candidates if c != k])
             if not partners or partners == self.used.get(k):
@@ -129,12 +131,12 @@ class StereoPriors:
         self.seconds += time.perf_counter() - t0
         return done
 
-    def _images(self, f: MapFrame, frames: dict[int, MapFrame], keyframes: list[int],
+    def _images(self, frames: dict[int, MapFrame], keyframes: list[int],
                 poses: dict[int, torch.Tensor]) -> dict[int, np.ndarray]:
-        """Partner candidates' images at f's resolution (halved keyframes are not), by index."""
-        out = {c: frames[c].rgb.cpu().numpy() for c in keyframes if c != f.index}
-        out.update({i: rgb for i, rgb in self.recent.items() if i != f.index and i in poses})
-        return {i: rgb for i, rgb in out.items() if rgb.shape == tuple(f.rgb.shape)}
+        """Partner candidates' images (keyframes', some halved, and the recent frames'), by index."""
+        out = {c: frames[c].rgb.cpu().numpy() for c in keyframes}
+        out.update({i: rgb for i, rgb in self.recent.items() if i in poses})
+        return out
 
     def _partners(self, k: int, images: dict[int, np.ndarray], poses: dict[int, torch.Tensor], intr,
                   landmarks: np.ndarray | None) -> tuple[int, ...]:
