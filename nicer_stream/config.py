@@ -171,9 +171,11 @@ class MappingConfig:
     """Extra uniformly sampled points for the Eikonal term per iteration."""
     init: str = "first_frame"
     """How the first mapping fixes scale and shift: 'first_frame' (at frame 0: the prior's
-    shift from the normal prior, Sec. 3.4 otherwise) or 'two_view' (wait for frame
+    shift from the normal prior, Sec. 3.4 otherwise), 'two_view' (wait for frame
     `init_frames`, take both poses and both priors' shifts from the flow between them;
-    the frames in between are tracked once the map exists)."""
+    without a depth prior, from the frontend's tracks once their parallax suffices; the frames
+    in between are tracked once the map exists) or 'auto' ('first_frame' when the first frame
+    has a depth prior, else 'two_view')."""
     init_frames: int = 10
     """'two_view': frames after the first that the second view waits for."""
     batch_iters: int = 2000
@@ -427,8 +429,13 @@ def fast() -> SlamConfig:
         # the SLAM map settled ~9 cm deep at near range (`0.97 * target + 8.7 cm`), tracking
         # then stretched the path by 6% (Replica run: depth L1 14.7 -> 3.2 cm).
         loss=LossConfig(weights=LossWeights(depth=10.0, flow=0.01, normal_l1=0.2, normal_angular=0.2)),
-        # Two-view start: the first frame's shift from the normal prior alone is ~2% of the
-        # median depth off, which bent the Replica map into `0.72 * true + 13 cm`.
+        # Start ('auto'): without a depth prior (stereo, none) the frontend's two-view start; with
+        # one, the first frame's, its shift from the normal prior. The flow's two-view start was
+        # chosen on `oracle:clean` with GT flow (shift 0.1% of the median depth off, against ~2%
+        # from the normals), but with DIS flow it is the worse one: Replica, realistic `oracle`,
+        # 2026-12-04: two-view ATE 0.39 cm, depth L1 71 cm, mesh 75 / 56 cm (1%); first frame ATE
+        # 1.54 cm, depth L1 10.8 cm, mesh 8.5 / 7.3 cm (51%); on the synthetic room its fit put
+        # 30% of frame 0 behind the camera (ATE 38 cm, no surface).
         # Keyframes every 5 frames and a 150-iteration closing call with fixed poses: the Replica
         # map is then fitted to frames 0/5/10/15/19 together at the end rather than to 0/10 plus
         # the latest (oracle, seeds 0-2, ICP-aligned mesh completion 1.56-2.22 -> 1.56-1.73 cm).
@@ -437,7 +444,7 @@ def fast() -> SlamConfig:
         # (ATE 0.28 -> 0.68 cm, depth and mesh alike, PSNR 30.7 -> 27.6 dB) but the demo room's ATE
         # 1.7 -> 4.9 cm, mesh accuracy 4.2 -> 5.2 cm: kept at the measured schedule.
         mapping=MappingConfig(iters=80, first_iters=300, rays=1024, eikonal_points=256, batch_iters=350,
-                              init="two_view", keyframe_every=5, final_iters=150),
+                              init="auto", keyframe_every=5, final_iters=150),
         # Tracking (Replica run, oracle priors): started from a PnP pose on the flow prior and the
         # map's rendered depth. From the previous pose (as the release does) 60 RGB iterations
         # recovered only part of each motion: translations ~10% short, the map 9% too deep

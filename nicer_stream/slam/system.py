@@ -71,8 +71,8 @@ class SlamSystem:
             raise UserError(f"loss.slam_prior_alignment must be lstsq, map or flow, got {cfg.loss.slam_prior_alignment!r}")
         if cfg.tracking.init not in ("previous", "constant_velocity", "flow"):
             raise UserError(f"tracking.init must be previous, constant_velocity or flow, got {cfg.tracking.init!r}")
-        if cfg.mapping.init not in ("first_frame", "two_view"):
-            raise UserError(f"mapping.init must be first_frame or two_view, got {cfg.mapping.init!r}")
+        if cfg.mapping.init not in ("first_frame", "two_view", "auto"):
+            raise UserError(f"mapping.init must be first_frame, two_view or auto, got {cfg.mapping.init!r}")
         if cfg.tracking.frontend not in ("classical", "none", "auto"):
             raise UserError(f"tracking.frontend must be classical, none or auto, got {cfg.tracking.frontend!r}")
         if cfg.tracking.refine not in ("all", "keyframes"):
@@ -160,10 +160,13 @@ class SlamSystem:
     def _waits(self, mf: MapFrame | None) -> bool:
         """Hold frames for the two-view start: until `init_frames` frames follow the first; without
         a depth prior (the frontend's start) only until the frontend sees enough parallax."""
-        if self.cfg.mapping.init != "two_view":
+        init = self.cfg.mapping.init
+        if init == "first_frame":
             return False
         if not self.pending:
-            return mf is not None and (mf.depth_prior is not None or self.frontend is not None)
+            if mf is None or (init == "auto" and mf.depth_prior is not None):
+                return False  # 'auto' with a depth prior: the first frame's start
+            return mf.depth_prior is not None or self.frontend is not None
         if self.pending[0].depth_prior is None and mf is not None and self._frontend_view(mf.index) is not None:
             return False
         return len(self.pending) < self.cfg.mapping.init_frames
@@ -347,7 +350,7 @@ class SlamSystem:
         elif last is not None:
             view = two_view_init(first, last, self.cfg.loss.first_depth_median_m)
         if view is None:
-            log.warning("two-view start failed (too little parallax or flow): scale and shift from frame %d alone",
+            log.warning("two-view start failed (too little parallax or flow, or a prior fit with depth behind the camera): scale and shift from frame %d alone",
                         first.index)
             self.init_note = "two-view start failed: first frame's shift from the normal prior"
         elif points is None:

@@ -5,7 +5,8 @@ import torch
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.priors import PriorEngine
 from nicer_stream.priors.oracle import OracleCorruption, OracleDepthNormal, OracleFlow
-from nicer_stream.slam.two_view import relative_pose, two_view_init
+from nicer_stream.runtime.frame_priors import make_engine, map_frame
+from nicer_stream.slam.two_view import behind_fraction, relative_pose, two_view_init
 from sources import open_source
 from sources.base import SourceOptions
 
@@ -50,3 +51,43 @@ def test_no_flow_no_start():
     m0.flows.clear()
     assert relative_pose(m0, mk) is None
     assert two_view_init(m0, mk, 2.0) is None
+
+
+def test_behind_fraction_counts_known_pixels_at_non_positive_depth():
+    prior = torch.tensor([1.0, 2.0, 3.0, 4.0, 0.0, float("nan")])  # the last two unknown
+    assert behind_fraction(prior, (1.0, 2.5)) == 0.5  # depths -1.5, -0.5, 0.5, 1.5
+    assert behind_fraction(prior, (2.0, 0.0)) == 0.0
+    assert behind_fraction(torch.zeros(3), (1.0, 0.0)) == 1.0  # nothing known: no fit is plausible
+
+
+def test_a_start_whose_fit_puts_depth_behind_the_camera_is_rejected():
+    # The realistic oracle with DIS flow on the demo room, frames 0 and 10 at 320 px: the
+    # flow-triangulated fit put ~30% of frame 0 behind the camera and broke the whole run.
+    frames = list(open_source("synthetic:room?frames=40", SourceOptions(max_side=320, max_frames=11)))
+    engine = make_engine("oracle", "dis", "cpu")
+    first = map_frame(frames[0], engine, [frames[10]], "cpu")
+    second = map_frame(frames[10], engine, [frames[0]], "cpu")
+    unchecked = two_view_init(first, second, 2.0, max_behind=1.0)
+    assert unchecked is not None and behind_fraction(first.depth_prior, unchecked.first_scale_shift) > 0.1
+    assert two_view_init(first, second, 2.0) is None
+
+
+def test_auto_start_holds_frames_only_without_a_depth_prior(tiny_config):
+    """'auto': a first frame with a depth prior starts the map at once (its shift from the
+    normal prior); without one the frames wait for the frontend's two-view start."""
+    from dataclasses import replace
+
+    from nicer_stream.config import load
+    from nicer_stream.slam.events import FrameTracked
+    from nicer_stream.slam.system import SlamSystem
+
+    cfg = load("fast", tiny_config)
+    cfg = replace(cfg, max_side=64, mapping=replace(cfg.mapping, init="auto"),
+                  tracking=replace(cfg.tracking, frontend="classical"))
+    frame = next(iter(open_source("synthetic:room?frames=3", SourceOptions(max_side=64))))
+    pri = PriorEngine(OracleDepthNormal(corruption=OracleCorruption.clean()), OracleFlow()).priors(frame, [])
+    with_prior = SlamSystem(cfg).step(frame.without_ground_truth(), pri)
+    assert any(isinstance(e, FrameTracked) and e.index == 0 for e in with_prior)
+    without = SlamSystem(cfg)
+    assert not any(isinstance(e, FrameTracked) for e in without.step(frame.without_ground_truth()))
+    assert without.model is None and len(without.pending) == 1
