@@ -429,13 +429,12 @@ def fast() -> SlamConfig:
         # the SLAM map settled ~9 cm deep at near range (`0.97 * target + 8.7 cm`), tracking
         # then stretched the path by 6% (Replica run: depth L1 14.7 -> 3.2 cm).
         loss=LossConfig(weights=LossWeights(depth=10.0, flow=0.01, normal_l1=0.2, normal_angular=0.2)),
-        # Start ('auto'): without a depth prior (stereo, none) the frontend's two-view start; with
-        # one, the first frame's, its shift from the normal prior. The flow's two-view start was
-        # chosen on `oracle:clean` with GT flow (shift 0.1% of the median depth off, against ~2%
-        # from the normals), but with DIS flow it is the worse one: Replica, realistic `oracle`,
-        # 2026-12-04: two-view ATE 0.39 cm, depth L1 71 cm, mesh 75 / 56 cm (1%); first frame ATE
-        # 1.54 cm, depth L1 10.8 cm, mesh 8.5 / 7.3 cm (51%); on the synthetic room its fit put
-        # 30% of frame 0 behind the camera (ATE 38 cm, no surface).
+        # Two-view start: the first frame's shift from the normal prior alone is ~2% of the
+        # median depth off, which bent the Replica map into `0.72 * true + 13 cm` (oracle:clean).
+        # 'auto' (the first frame's start whenever it has a depth prior) gives better maps with
+        # realistic priors but worse trajectories (docs/priors.md, "The start with a depth prior"):
+        # Replica, realistic `oracle`: depth L1 71 -> 10.8 cm, ATE 0.39 -> 1.54 cm; `oracle:clean`:
+        # ATE 0.28 -> 4.58 cm.
         # Keyframes every 5 frames and a 150-iteration closing call with fixed poses: the Replica
         # map is then fitted to frames 0/5/10/15/19 together at the end rather than to 0/10 plus
         # the latest (oracle, seeds 0-2, ICP-aligned mesh completion 1.56-2.22 -> 1.56-1.73 cm).
@@ -444,7 +443,7 @@ def fast() -> SlamConfig:
         # (ATE 0.28 -> 0.68 cm, depth and mesh alike, PSNR 30.7 -> 27.6 dB) but the demo room's ATE
         # 1.7 -> 4.9 cm, mesh accuracy 4.2 -> 5.2 cm: kept at the measured schedule.
         mapping=MappingConfig(iters=80, first_iters=300, rays=1024, eikonal_points=256, batch_iters=350,
-                              init="auto", keyframe_every=5, final_iters=150),
+                              init="two_view", keyframe_every=5, final_iters=150),
         # Tracking (Replica run, oracle priors): started from a PnP pose on the flow prior and the
         # map's rendered depth. From the previous pose (as the release does) 60 RGB iterations
         # recovered only part of each motion: translations ~10% short, the map 9% too deep
