@@ -229,3 +229,16 @@ def test_probe_early_stop_matches_every_probe():
     # Too few probes for two runs: the one pass, bit for bit.
     assert torch.equal(probe_weights(model, beta, x[:, :48], deltas[:, :48], True, stop_tau=16.0, segment=32),
                        probe_weights(model, beta, x[:, :48], deltas[:, :48], True, stop_tau=None))
+
+
+def test_a_whole_image_with_early_stopped_probes_matches_every_probe():
+    """render_image stops its probes in runs of IMAGE_PROBE_SEGMENT: the same image as with
+    every probe evaluated, to float rounding."""
+    from nicer_stream.render.renderer import IMAGE_PROBE_SEGMENT
+    model, beta = _model(), BetaField(RC)
+    cfg = dataclasses.replace(RC, n_probe=4 * IMAGE_PROBE_SEGMENT, probe_stop_tau=16.0)
+    T = _pose_at_centre()
+    fast = render_image(model, beta, T, INTR, cfg)
+    ref = render_image(model, beta, T, INTR, dataclasses.replace(cfg, probe_stop_tau=None))
+    assert np.abs(fast.depth - ref.depth).max() < 1e-4
+    assert np.abs(fast.rgb - ref.rgb).max() < 1e-4
