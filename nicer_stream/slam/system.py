@@ -113,6 +113,7 @@ class SlamSystem:
         self.recent_losses: list[float] = []
         self.scale_rule: tuple[float, float] | None = None
         self.pending: list[MapFrame | None] = []  # held for the two-view start (None: corrupt)
+        self._replay: set[int] = set()  # held frames the start has yet to record (flows to them stay)
         self.pending_raw: list[Frame] = []
         self.init_note = ""
         # 'auto': the frontend where the depth prior needs good poses (stereo) or starts the SLAM.
@@ -199,6 +200,7 @@ class SlamSystem:
         """Book a frame whose pose is set: order, storage, keyframe and mapping schedule."""
         events: list[Event] = []
         i = frame.index
+        self._replay.discard(i)
         self.order.append(i)
         self.timestamps[i] = frame.timestamp
         self._store(mf)
@@ -337,6 +339,7 @@ class SlamSystem:
         held frames through tracking and the schedule in input order."""
         held = list(zip(self.pending, self.pending_raw)) + ([(mf, frame)] if frame is not None else [])
         self.pending, self.pending_raw = [], []
+        self._replay = {m.index for m, _ in held[1:] if m is not None}
         first = held[0][0]
         last = next((m for m, _ in reversed(held[1:]) if m is not None), None)
         view, points = None, None
@@ -348,9 +351,11 @@ class SlamSystem:
                               f"essential-matrix inliers), first frame's median tracked depth taken as "
                               f"{self.cfg.loss.first_depth_median_m} m")
         elif last is not None:
-            view = two_view_init(first, last, self.cfg.loss.first_depth_median_m)
+            median_m = self.cfg.loss.first_depth_median_m
+            reference = first_scale_shift(first, median_m) if first.normal_prior is not None else None
+            view = two_view_init(first, last, median_m, reference=reference)
         if view is None:
-            log.warning("two-view start failed (too little parallax or flow, or a prior fit with depth behind the camera): scale and shift from frame %d alone",
+            log.warning("two-view start failed (too little parallax or flow, or a prior fit the checks reject): scale and shift from frame %d alone",
                         first.index)
             self.init_note = "two-view start failed: first frame's shift from the normal prior"
         elif points is None:
@@ -535,7 +540,8 @@ class SlamSystem:
             if k != mf.index and k not in self.keyframes and k != self.order[0]:
                 del self.frames[k]
         for f in self.frames.values():  # flows to dropped frames would pile up in keyframes
-            for j in [j for j in f.flows if j not in self.frames]:
+            # (not to held frames the start replays next: their tracking starts from these flows)
+            for j in [j for j in f.flows if j not in self.frames and j not in self._replay]:
                 del f.flows[j]
 
 

@@ -34,6 +34,11 @@ log = logging.getLogger(__name__)
 # DIS flow on the synthetic room (frames 0/10) the realistic oracle's fit put 32% of frame 0's
 # pixels below 0.1 m and the whole run broke (ATE 38 cm); correct fits put none there.
 MAX_BEHIND = 0.01
+# The two-view fit's depth of the first frame may differ from its normal prior's start by at most
+# this fraction of the median. Measured on frames 0/10 (`runs/s35/agree.py`, docs/priors.md): with
+# GT flow 1.0-1.9% on Replica and the synthetic room (the two-view shift then 0.1-10% of the median
+# off, the normals' 1-5%); with DIS flow 5.9-80% (the two-view's 12-93% off, the normals' 1-5%).
+MAX_DISAGREEMENT = 0.04
 
 
 @dataclass(frozen=True)
@@ -92,13 +97,24 @@ def behind_fraction(prior: torch.Tensor, wq: tuple[float, float]) -> float:
     return float(((known - q) / w <= 0).double().mean()) if known.numel() else 1.0
 
 
+def target_disagreement(prior: torch.Tensor, a: tuple[float, float], b: tuple[float, float]) -> float:
+    """Median |depth_a - depth_b| over a prior's known pixels, relative to depth_b's median, of
+    the depths (prior - q) / w under two fits a and b."""
+    known = prior[(prior > 0) & torch.isfinite(prior)].double()
+    da, db = (known - a[1]) / a[0], (known - b[1]) / b[0]
+    return float((da - db).abs().median() / db.median().abs().clamp_min(1e-12))
+
+
 def two_view_init(first: MapFrame, second: MapFrame, median_m: float,
-                  max_behind: float = MAX_BEHIND) -> TwoView | None:
+                  max_behind: float = MAX_BEHIND, reference: tuple[float, float] | None = None,
+                  max_disagreement: float = MAX_DISAGREEMENT) -> TwoView | None:
     """The second pose and both priors' (w, q), at the scale where `first`'s median aligned
     depth is `median_m`; None when the geometry is too weak (no flow, < 100 essential-matrix
     inliers, a failed or non-positive fit, or a fit that puts more than `max_behind` of the
-    first prior's pixels at non-positive depth). A second fit like that is dropped (its
-    (w, q) then comes from the mapping's per-iteration fit)."""
+    first prior's pixels at non-positive depth, or, given a `reference` (w, q) of the first
+    prior at the same median (its normal prior's start), a depth that differs from the
+    reference's by more than `max_disagreement` of its median). A second fit behind the camera
+    is dropped (its (w, q) then comes from the mapping's per-iteration fit)."""
     rel = relative_pose(first, second)
     if rel is None or first.depth_prior is None:
         return None
@@ -115,6 +131,12 @@ def two_view_init(first: MapFrame, second: MapFrame, median_m: float,
     if prior.numel() < 100:
         return None
     s = median_m / float(((prior - q) / w).median())  # unit-baseline depth -> metres
+    if reference is not None:
+        off = target_disagreement(first.depth_prior, (w / s, q), reference)
+        if off > max_disagreement:
+            log.warning("two-view start rejected: its depth of frame %d differs from the normal prior's start by "
+                        "%.0f%% of the median (the flow is too coarse for the shift)", first.index, 100 * off)
+            return None
     T1 = T1.numpy().copy()
     T1[:3, 3] *= s
     second_wq = align_frame_prior(second, first, torch.as_tensor(T1), torch.eye(4, dtype=torch.float64))
