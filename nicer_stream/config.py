@@ -431,6 +431,8 @@ def fast() -> SlamConfig:
         loss=LossConfig(weights=LossWeights(depth=10.0, flow=0.01, normal_l1=0.2, normal_angular=0.2)),
         # Two-view start: the first frame's shift from the normal prior alone is ~2% of the
         # median depth off, which bent the Replica map into `0.72 * true + 13 cm` (oracle:clean).
+        # With DIS flow the two-view's shift is worse than the normals' and `two_view_init`'s
+        # checks hand the start to the first frame (slam/two_view.py, docs/priors.md).
         # 'auto' (the first frame's start whenever it has a depth prior) gives better maps with
         # realistic priors but worse trajectories (docs/priors.md, "The start with a depth prior"):
         # Replica, realistic `oracle`: depth L1 71 -> 10.8 cm, ATE 0.39 -> 1.54 cm; `oracle:clean`:
