@@ -89,18 +89,23 @@ def essential_pose(uv0: np.ndarray, uv1: np.ndarray, intr: Intrinsics, thresh_px
     return np.linalg.inv(T_second_first), int(n_in), mask[:, 0] > 0
 
 
+def _known(prior: torch.Tensor) -> torch.Tensor:
+    """A prior's known values (positive, finite), flattened, float64."""
+    return prior[(prior > 0) & torch.isfinite(prior)].double()
+
+
 def behind_fraction(prior: torch.Tensor, wq: tuple[float, float]) -> float:
     """Fraction of a prior's known pixels (positive, finite) whose depth (prior - q) / w is not
     positive under (w, q): a fit no real depth map can have."""
     w, q = wq
-    known = prior[(prior > 0) & torch.isfinite(prior)]
+    known = _known(prior)
     return float(((known - q) / w <= 0).double().mean()) if known.numel() else 1.0
 
 
 def target_disagreement(prior: torch.Tensor, a: tuple[float, float], b: tuple[float, float]) -> float:
     """Median |depth_a - depth_b| over a prior's known pixels, relative to depth_b's median, of
     the depths (prior - q) / w under two fits a and b."""
-    known = prior[(prior > 0) & torch.isfinite(prior)].double()
+    known = _known(prior)
     da, db = (known - a[1]) / a[0], (known - b[1]) / b[0]
     return float((da - db).abs().median() / db.median().abs().clamp_min(1e-12))
 
@@ -123,9 +128,10 @@ def two_view_init(first: MapFrame, second: MapFrame, median_m: float,
     if wq is None or wq[0] <= 0:
         return None
     w, q = wq
-    if behind_fraction(first.depth_prior, wq) > max_behind:
+    behind = behind_fraction(first.depth_prior, wq)
+    if behind > max_behind:
         log.warning("two-view start rejected: its prior fit puts %.0f%% of frame %d's depth at or behind the camera",
-                    100 * behind_fraction(first.depth_prior, wq), first.index)
+                    100 * behind, first.index)
         return None
     prior = first.depth_prior[first.depth_prior > q].double()
     if prior.numel() < 100:
