@@ -77,6 +77,24 @@ def partners_by_baseline(k: int, centres: dict[int, np.ndarray], depth: float, t
     return tuple(sorted(picked))
 
 
+def pair_poses(k: int, partners: tuple[int, ...], poses: dict[int, torch.Tensor],
+               consistent: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+    """T_world_cam (4, 4) float64 of each partner for the sweep of frame `k`: where `k` and the
+    partner both have a `consistent` pose, `poses[k]` times their relative pose from those;
+    else `poses[partner]`. Why: a keyframe's pose refined against the map moves it off its
+    neighbours' frontend poses by up to ~1.5 degrees (the demo room, measured), and a pair's
+    depth depends only on its relative pose (10% of the baseline's parallax per 0.1 degree at
+    the demo's ~25 cm baselines)."""
+    T_k = poses[k].double().cpu().numpy()
+    out = {}
+    for p in partners:
+        if k in consistent and p in consistent:
+            out[p] = T_k @ np.linalg.inv(consistent[k]) @ consistent[p]
+        else:
+            out[p] = poses[p].double().cpu().numpy()
+    return out
+
+
 def stereo_normals(depth: np.ndarray, intr) -> np.ndarray:
     """(H, W) depth with 0 where unknown -> (H, W, 3) camera normals, zero where unknown: from
     the depth median-filtered (stereo noise) with holes filled only for the differences."""
@@ -106,9 +124,12 @@ class StereoPriors:
             del self.recent[old]
 
     def update(self, window: list[int], frames: dict[int, MapFrame], poses: dict[int, torch.Tensor],
-               keyframes: list[int], bound: SceneBound, landmarks: np.ndarray | None = None) -> list[int]:
+               keyframes: list[int], bound: SceneBound, landmarks: np.ndarray | None = None,
+               consistent: dict[int, np.ndarray] | None = None) -> list[int]:
         """Compute the priors the window's frames lack (or have one-sided); returns those updated.
-        `landmarks` (P, 3) world points (the frontend's) narrow each sweep's depth range."""
+        `landmarks` (P, 3) world points (the frontend's) narrow each sweep's depth range.
+        `consistent`: T_world_cam (4, 4) of frames from one self-consistent estimator (the
+        frontend's); a pair whose frames both have one takes its relative pose from them (`pair_poses`)."""
         t0 = time.perf_counter()
         candidates = [k for k in keyframes if k in frames and k in poses]
         pool = self._images(frames, candidates, poses)
@@ -125,7 +146,8 @@ class StereoPriors:
             two_sided = min(partners) < k < max(partners)
             if old is not None and (min(old) < k < max(old) or not two_sided):
                 continue  # already two-sided, or no better now
-            self._compute(frames[k], [(images[p], poses[p]) for p in partners], poses, bound, landmarks)
+            pair = pair_poses(k, partners, poses, consistent or {})
+            self._compute(frames[k], [(images[p], pair[p]) for p in partners], poses, bound, landmarks)
             self.used[k] = partners
             done.append(k)
         self.seconds += time.perf_counter() - t0
@@ -149,17 +171,15 @@ class StereoPriors:
         centres = {i: poses[i].double().cpu().numpy()[:3, 3] for i in list(images) + [k]}
         return partners_by_baseline(k, centres, float(np.median(z)), self.params.target_baseline)
 
-    def _compute(self, f: MapFrame, partners: list[tuple[np.ndarray, torch.Tensor]], poses: dict[int, torch.Tensor],
+    def _compute(self, f: MapFrame, partners: list[tuple[np.ndarray, np.ndarray]], poses: dict[int, torch.Tensor],
                  bound: SceneBound, landmarks: np.ndarray | None = None) -> None:
-        """f's priors from `partners`: (image (H, W, 3), T_world_cam (4, 4)) pairs."""
+        """f's priors from `partners`: (image (H, W, 3), T_world_cam (4, 4) float64) pairs."""
         T = poses[f.index].double().cpu().numpy()
         near, far = depth_range(T, bound)
         seen = landmark_depth_range(T, landmarks, f.intr, self.params.landmark_margin, self.params.min_landmarks)
         if seen is not None and max(near, seen[0]) < min(far, seen[1]):
             near, far = max(near, seen[0]), min(far, seen[1])
-        depth = sweep_depth(f.rgb.cpu().numpy(), T,
-                               [(rgb, T_p.double().cpu().numpy()) for rgb, T_p in partners],
-                               f.intr, near, far, self.params)
+        depth = sweep_depth(f.rgb.cpu().numpy(), T, partners, f.intr, near, far, self.params)
         f.depth_prior = torch.as_tensor(depth, device=f.rgb.device)
         f.normal_prior = torch.as_tensor(stereo_normals(depth, f.intr), device=f.rgb.device)
         f.depth_scale_shift = (1.0, 0.0) if self.params.scale == "fixed" else None

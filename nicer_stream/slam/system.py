@@ -461,6 +461,13 @@ class SlamSystem:
             return None
         return np.stack(list(self.frontend.landmarks.values()))
 
+    def _frontend_poses(self) -> dict[int, np.ndarray]:
+        """The frontend's own poses (PnP, then its bundle adjustment), by frame: consistent with
+        each other where the refined keyframes are not ({} without a frontend)."""
+        if self.frontend is None:
+            return {}
+        return {**self.frontend.own, **self.frontend.poses}
+
     def _map(self, current: int, iters: int, bundle_adjust: bool = True, closing: bool = False) -> list[MapUpdated]:
         """Plan a mapping call and submit it; the calls that have finished come back as events
         (this one at once with the inline executor)."""
@@ -468,7 +475,8 @@ class SlamSystem:
         anchor = self.order[0]
         ba = ba_frames(window, current, anchor) if bundle_adjust and self.cfg.mapping.ba_start < 1.0 else set()
         if self.stereo is not None:
-            self.stereo.update(window, self.frames, self.poses, self.keyframes, self.bound, self._landmarks())
+            self.stereo.update(window, self.frames, self.poses, self.keyframes, self.bound, self._landmarks(),
+                               self._frontend_poses())
         mode = self.cfg.loss.slam_prior_alignment
         if mode == "map":
             for k in window:

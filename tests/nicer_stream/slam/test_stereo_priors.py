@@ -8,7 +8,10 @@ from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.runtime.slam_run import RunRequest, run_slam
 from nicer_stream.config import StereoConfig
-from nicer_stream.slam.stereo_priors import StereoPriors, landmark_depth_range, partners_by_baseline, partners_of, stereo_normals
+from nicer_stream.geometry.se3 import se3_exp
+from nicer_stream.slam.stereo_priors import (
+    StereoPriors, landmark_depth_range, pair_poses, partners_by_baseline, partners_of, stereo_normals,
+)
 from sources import open_source
 from sources.base import SourceOptions
 
@@ -63,6 +66,37 @@ def test_keyframe_priors_are_metric_in_the_poses_unit_and_two_sided_once_possibl
     assert m.mean() > 0.5 and np.median(np.abs(d[m] - gt[m]) / gt[m]) < 0.03
     assert f.depth_scale_shift == (1.0, 0.0)
     assert f.normal_prior.shape == (*gt.shape, 3)
+
+
+def test_pair_poses_take_the_relative_pose_from_the_consistent_set_where_both_frames_have_one():
+    g = torch.Generator().manual_seed(0)
+    poses = {i: se3_exp(torch.randn(6, generator=g, dtype=torch.float64)) for i in range(4)}
+    consistent = {i: se3_exp(torch.randn(6, generator=g, dtype=torch.float64)).numpy() for i in (0, 1, 2)}
+    out = pair_poses(1, (0, 2, 3), poses, consistent)
+    T1 = poses[1].numpy()
+    for p in (0, 2):  # k's own pose, the partner where the consistent set puts it relative to k
+        np.testing.assert_allclose(np.linalg.inv(T1) @ out[p], np.linalg.inv(consistent[1]) @ consistent[p], atol=1e-12)
+    np.testing.assert_allclose(out[3], poses[3].numpy())  # no consistent pose: its own
+    assert all(np.allclose(pair_poses(3, (0, 1), poses, consistent)[p], poses[p].numpy()) for p in (0, 1))
+
+
+def test_a_keyframe_rotated_off_its_partners_keeps_its_depth_with_the_consistent_poses():
+    # A keyframe refined against the map can sit a degree off its neighbours' frontend poses
+    # (the demo room: up to 1.5 degrees); its stereo depth must not inherit that.
+    src = list(open_source("synthetic:room?frames=40", SourceOptions(max_frames=16)))
+    gt_poses = {f.index: torch.as_tensor(f.gt_pose, dtype=torch.float64) for f in src}
+    tilt = se3_exp(torch.tensor([0.0, 0.0, 0.0, 0.0, np.radians(1.0), 0.0], dtype=torch.float64))
+    poses = {**gt_poses, 10: gt_poses[10] @ tilt}
+    bound = SceneBound((0.0, 0.0, 0.0), 4.0, "config")
+    gt = src[10].gt_depth
+    gross = []
+    for consistent in (None, {i: T.numpy() for i, T in gt_poses.items()}):
+        frames = {f.index: MapFrame.from_frame(f.without_ground_truth(), None, torch.device("cpu")) for f in src[5:16:5]}
+        StereoPriors(StereoConfig()).update([5, 10, 15], frames, poses, [5, 10, 15], bound, consistent=consistent)
+        d = frames[10].depth_prior.numpy()
+        m = (d > 0) & (gt > 0)
+        gross.append(float((np.abs(d[m] - gt[m]) / gt[m] > 0.1).mean()))
+    assert gross[1] < 0.08 and gross[0] > 2 * gross[1], gross
 
 
 def _world_points(frame, n: int, seed: int = 0) -> np.ndarray:
