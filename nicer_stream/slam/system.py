@@ -32,6 +32,7 @@ from nicer_stream.model.geometry import initial_sphere
 from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpdated
 from nicer_stream.slam.map_jobs import InlineMapping, MapJob, MappingExecutor, MapResult, job_frames, take_snapshot
 from nicer_stream.slam.motion import frontend_disagreement, predict_pose, tracking_failure
+from nicer_stream.slam.pose_corrections import spread_corrections
 from nicer_stream.slam.stereo_priors import StereoPriors
 from nicer_stream.slam.two_view import TwoView, two_view_init
 from nicer_stream.slam.window import ba_frames, select_window
@@ -123,6 +124,7 @@ class SlamSystem:
         self._fview = None  # (frame index, frontend two-view result) of the start without priors
         self._frontend_kept: set[int] = set()  # lost frames whose pose is the frontend's
         self._unrefined: set[int] = set()  # frames whose pose is the frontend's alone (`tracking.refine`)
+        self._frontend_at: dict[int, torch.Tensor] = {}  # the frontend's pose each frame started from
         self._keyframe_owed = False  # a keyframe slot's frame failed its check (`tracking.refine`)
         self._halved: set[int] = set()  # keyframes kept at half resolution (`full_res_keyframes`)
 
@@ -377,6 +379,7 @@ class SlamSystem:
         front = self._frontend_estimate(mf.index, T_pred)
         if front is not None:  # the frontend's PnP pose seeds the photometric tracker
             T_pred = torch.as_tensor(front.T_world_cam, dtype=T_pred.dtype, device=T_pred.device)
+            self._frontend_at[mf.index] = T_pred.detach()
         elif init == "flow":
             T_pred = self._flow_init(mf, T_pred)
         n = len(self.order) + 1
@@ -567,5 +570,9 @@ class SlamSystem:
 
     # -- results ---------------------------------------------------------------------
     def trajectory(self) -> tuple[list[float], list[np.ndarray]]:
-        """(timestamps, T_world_cam float64) of every frame so far, in input order."""
-        return [self.timestamps[i] for i in self.order], [self.poses[i].double().cpu().numpy() for i in self.order]
+        """(timestamps, T_world_cam float64) of every frame so far, in input order: the frames that
+        hold the frontend's pose moved with the map's corrections of the keyframes around them
+        (`pose_corrections.py`; the poses tracking goes on from are not changed)."""
+        anchors = (self.mapped_frames | set(self.keyframes)) & set(self.poses)
+        poses = spread_corrections(self.order, self.poses, self._frontend_at, anchors, self._unrefined)
+        return [self.timestamps[i] for i in self.order], [poses[i].double().cpu().numpy() for i in self.order]
