@@ -4,10 +4,12 @@ neighbouring keyframes and the SLAM's own pose estimates (no ground truth, no we
 The depth is in the poses' unit, so its scale and shift are fixed at (1, 0) (`stereo.scale =
 'fixed'`): the map is pulled to the scale of its own trajectory, never to a per-frame fit. A
 keyframe's prior is computed when a mapping call first includes it, from one partner before it
-and one after where they exist, and once more when a later partner makes a one-sided pair
-two-sided. With the frontend's landmarks, the partners are the frames (keyframes or recent ones)
-at the baseline `stereo.target_baseline` asks for and the sweep covers the landmarks' depths;
-without them, the nearest keyframes over the scene bound's depths."""
+and one after where they exist (two on one side where the other has none), and once more when
+later partners make a one-sided pair two-sided or a lone partner gets a second. With the
+frontend's landmarks, the partners are the frames (keyframes or recent ones) at the baseline
+`stereo.target_baseline` asks for and the sweep covers the landmarks' depths; without them, the
+nearest keyframes over the scene bound's depths. Each pair's relative pose comes from the
+frontend's own poses where it has them (`pair_poses`)."""
 from __future__ import annotations
 
 import time
@@ -67,13 +69,21 @@ def landmark_depth_range(T_world_cam: np.ndarray, points: np.ndarray | None, int
 def partners_by_baseline(k: int, centres: dict[int, np.ndarray], depth: float, target: float) -> tuple[int, ...]:
     """One candidate before `k` and one after (by index), each the one whose baseline to k (camera
     centres (3,), k's included) over `depth` is nearest `target` in ratio; candidates at k's own
-    centre never."""
-    picked = []
-    for side in ([c for c in centres if c < k], [c for c in centres if c > k]):
+    centre never. Where only one side has candidates (the first frames, the last), a second one
+    on that side, nearest half the target: two partners check each other (`sweep_depth` drops
+    pixels they disagree on), which one partner cannot (the demo room with GT poses: L1 10.6 ->
+    3.4 cm on frame 0, 10.7 -> 4.0 cm on the last)."""
+    def nearest(side: list[int], goal: float) -> int | None:
         ratio = {c: float(np.linalg.norm(centres[c] - centres[k])) / depth for c in side}
         ok = [c for c in side if ratio[c] > 0]
-        if ok:
-            picked.append(min(ok, key=lambda c: (abs(np.log(ratio[c] / target)), abs(c - k))))
+        return min(ok, key=lambda c: (abs(np.log(ratio[c] / goal)), abs(c - k))) if ok else None
+
+    sides = [[c for c in centres if c < k], [c for c in centres if c > k]]
+    picked = [p for p in (nearest(side, target) for side in sides) if p is not None]
+    if len(picked) == 1:
+        side = next(s for s in sides if picked[0] in s)
+        second = nearest([c for c in side if c != picked[0]], target / 2)
+        picked += [second] if second is not None else []
     return tuple(sorted(picked))
 
 
@@ -144,8 +154,8 @@ class StereoPriors:
                 continue
             old = self.used.get(k)
             two_sided = min(partners) < k < max(partners)
-            if old is not None and (min(old) < k < max(old) or not two_sided):
-                continue  # already two-sided, or no better now
+            if old is not None and (min(old) < k < max(old) or not (two_sided or len(partners) > len(old))):
+                continue  # already two-sided, or no better now (better: two-sided, or a second partner)
             pair = pair_poses(k, partners, poses, consistent or {})
             self._compute(frames[k], [(images[p], pair[p]) for p in partners], poses, bound, landmarks)
             self.used[k] = partners

@@ -28,7 +28,10 @@ def test_partners_by_baseline_are_nearest_the_target_fraction_of_the_depth_on_ea
     assert partners_by_baseline(5, centres, 2.0, 0.1) == (1, 9)  # 0.2 m = 4 frames at 2 m
     assert partners_by_baseline(5, centres, 1.0, 0.1) == (3, 7)
     assert partners_by_baseline(2, centres, 1.0, 1.0) == (0, 9)  # as wide as there is
-    assert partners_by_baseline(9, centres, 1.0, 0.1) == (7,)  # one-sided at the end
+    # One-sided at the end: the best and a second nearest half the target, which checks it.
+    assert partners_by_baseline(9, centres, 1.0, 0.1) == (7, 8)
+    assert partners_by_baseline(0, centres, 2.0, 0.1) == (2, 4)
+    assert partners_by_baseline(1, {0: centres[0], 1: centres[1]}, 1.0, 0.1) == (0,)  # a lone candidate
     centres[4] = centres[5].copy()  # no baseline: never a partner
     assert partners_by_baseline(5, centres, 0.1, 0.1) == (3, 6)
 
@@ -56,9 +59,9 @@ def test_keyframe_priors_are_metric_in_the_poses_unit_and_two_sided_once_possibl
     sp = StereoPriors()
     assert sp.update([0, 5], frames, poses, [0, 5], bound) == [0, 5]
     assert sp.used == {0: (5,), 5: (0,)}
-    # A third keyframe makes 5's pair two-sided: recomputed; 0 stays (it can never be).
-    assert sp.update([0, 5, 10], frames, poses, [0, 5, 10], bound) == [5, 10]
-    assert sp.used == {0: (5,), 5: (0, 10), 10: (0, 5)}
+    # A third keyframe makes 5's pair two-sided and gives 0 a second partner: both recomputed.
+    assert sp.update([0, 5, 10], frames, poses, [0, 5, 10], bound) == [0, 5, 10]
+    assert sp.used == {0: (5, 10), 5: (0, 10), 10: (0, 5)}
     assert sp.update([0, 5, 10], frames, poses, [0, 5, 10], bound) == []  # nothing new
     f, gt = frames[5], src[5].gt_depth
     d = f.depth_prior.numpy()
