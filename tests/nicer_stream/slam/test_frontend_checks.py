@@ -246,3 +246,32 @@ def test_a_rejected_refinement_before_the_closing_call_keeps_the_pose_and_report
     events = slam.finish()
     assert not [e for e in events if isinstance(e, FrameTracked)]
     assert torch.equal(slam.poses[last], before)
+
+
+def test_the_last_frames_refinement_before_the_closing_call_passes_the_frontend_check(cfg, monkeypatch):
+    """The refinement of the latest frame before the closing call is checked against its frontend
+    pose as every keyframe's is: 10 cm off (no tracking-loss check fires at that) is rejected, and
+    the same refinement is taken once the frontend check's bounds are opened."""
+    base = replace(cfg, tracking=replace(cfg.tracking, refine="keyframes", loss_jump=1e9),
+                   mapping=replace(cfg.mapping, final_iters=2))
+    real = Tracker.track
+
+    def off(self, frame, T_init):
+        res = real(self, frame, T_init)
+        return replace(res, T_world_cam=T_init @ se3_exp(torch.tensor([0.1, 0.0, 0.0, 0.0, 0.0, 0.0])))
+
+    kept = []
+    for c in (base, _refine_keyframes_without_checks(base)):
+        torch.manual_seed(0)
+        cv2.setRNGSeed(0)
+        slam = SlamSystem(c)
+        for f in _frames(8):
+            slam.step(f)
+        last = slam.order[-1]
+        assert last in slam._unrefined and last in slam._frontend_depth, "nothing checked"
+        before = slam.poses[last].clone()
+        with monkeypatch.context() as m:
+            m.setattr(Tracker, "track", off)
+            again = [e for e in slam._refine_unrefined_last() if isinstance(e, FrameTracked)]
+        kept.append((torch.equal(slam.poses[last], before), len(again)))
+    assert kept == [(True, 0), (False, 1)], kept
