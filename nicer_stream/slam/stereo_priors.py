@@ -90,24 +90,18 @@ def partners_by_baseline(k: int, centres: dict[int, np.ndarray], depth: float, t
 def pair_poses(k: int, partners: tuple[int, ...], poses: dict[int, torch.Tensor],
                consistent: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
     """T_world_cam (4, 4) float64 of each partner for the sweep of frame `k`: where `k` and the
-    partner both have a `consistent` pose, `poses[k]` times their relative pose from those, its
-    translation scaled to the length of the baseline in `poses`; else `poses[partner]`. Why: a keyframe's pose refined against the map moves it off its
+    partner both have a `consistent` pose, `poses[k]` times their relative pose from those;
+    else `poses[partner]`. Why: a keyframe's pose refined against the map moves it off its
     neighbours' frontend poses by up to ~1.5 degrees (the demo room, measured), and a pair's
     depth depends only on its relative pose (10% of the baseline's parallax per 0.1 degree at
     the demo's ~25 cm baselines)."""
     T_k = poses[k].double().cpu().numpy()
     out = {}
     for p in partners:
-        T_p = poses[p].double().cpu().numpy()
         if k in consistent and p in consistent:
-            rel = np.linalg.inv(consistent[k]) @ consistent[p]
-            # The baseline's length stays the SLAM poses': the depth (and the map fitted to it)
-            # then keeps the trajectory's scale where the frontend's has drifted from it.
-            n = np.linalg.norm(rel[:3, 3])
-            if n > 0:
-                rel[:3, 3] *= np.linalg.norm(T_p[:3, 3] - T_k[:3, 3]) / n
-            T_p = T_k @ rel
-        out[p] = T_p
+            out[p] = T_k @ np.linalg.inv(consistent[k]) @ consistent[p]
+        else:
+            out[p] = poses[p].double().cpu().numpy()
     return out
 
 
