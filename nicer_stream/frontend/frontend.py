@@ -72,7 +72,7 @@ class ClassicalFrontend:
     def _predicted(self, index: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Where the landmarks should appear in frame `index`: (track ids (P,), pixels (P, 2)) from
         a constant-velocity pose over the last two frames it placed; None without those."""
-        placed = {**self.own, **self.poses}
+        placed = self.placed()
         if self.intr is None or not self.landmarks or index - 1 not in placed or index - 2 not in placed:
             return None
         T1 = placed[index - 1]
@@ -80,6 +80,11 @@ class ClassicalFrontend:
         ids = np.fromiter(self.landmarks, np.int64, len(self.landmarks))
         uv, z = project(T, np.stack(list(self.landmarks.values())), self.intr)
         return ids[z > 0], uv[z > 0]
+
+    def placed(self) -> dict[int, np.ndarray]:
+        """Its own pose of every frame in the window it placed (PnP, then its bundle adjustment;
+        the SLAM's where it could not place one): consistent with each other."""
+        return {**self.own, **self.poses}
 
     def estimate(self, index: int, T_guess: np.ndarray) -> FrontendPose | None:
         """PnP pose of observed frame `index` from its tracks' landmarks; None when fewer than

@@ -124,8 +124,7 @@ class SlamSystem:
         self._fview = None  # (frame index, frontend two-view result) of the start without priors
         self._frontend_kept: set[int] = set()  # lost frames whose pose is the frontend's
         self._unrefined: set[int] = set()  # frames whose pose is the frontend's alone (`tracking.refine`)
-        self._frontend_at: dict[int, torch.Tensor] = {}  # the frontend's pose each frame started from
-        self._frontend_depth: dict[int, float] = {}  # the median depth of the landmarks it saw
+        self._frontend_at: dict[int, FrontendPose] = {}  # the frontend's estimate each frame started from
         self._keyframe_owed = False  # a keyframe slot's frame failed its check (`tracking.refine`)
         self._halved: set[int] = set()  # keyframes kept at half resolution (`full_res_keyframes`)
 
@@ -250,12 +249,10 @@ class SlamSystem:
         self._unrefined.discard(last)
         T_front = self.poses[last]
         res = self.tracker.track(self.frames[last], T_front)
-        reason = tracking_failure(res.T_world_cam, T_front, res.loss, self.recent_losses, self.cfg.tracking)
-        if reason is None and last in self._frontend_depth and len(self.order) > 1:
-            # The check every keyframe's refinement passes (`_track`): the region the last frame
-            # sees is the least mapped one (the demo room, seed 1: 53 mm off GT after its refinement).
-            reason = frontend_disagreement(res.T_world_cam, T_front, self.poses[self.order[-2]],
-                                           self._frontend_depth[last], self.cfg.frontend)
+        # The checks every keyframe's refinement passes (`_track`): the region the last frame sees
+        # is the least mapped one (the demo room, seed 1: 53 mm off GT after its refinement).
+        front = self._frontend_at.get(last) if len(self.order) > 1 else None
+        reason = self._refinement_failure(res, T_front, self.poses[self.order[-2]] if front else T_front, front)
         if reason is not None:  # the pose stays as reported: no new event
             log.info("frame %d: refinement before the closing mapping rejected (%s): frontend pose kept", last, reason)
             return []
@@ -385,8 +382,7 @@ class SlamSystem:
         front = self._frontend_estimate(mf.index, T_pred)
         if front is not None:  # the frontend's PnP pose seeds the photometric tracker
             T_pred = torch.as_tensor(front.T_world_cam, dtype=T_pred.dtype, device=T_pred.device)
-            self._frontend_at[mf.index] = T_pred.detach()
-            self._frontend_depth[mf.index] = front.median_depth
+            self._frontend_at[mf.index] = front
         elif init == "flow":
             T_pred = self._flow_init(mf, T_pred)
         n = len(self.order) + 1
@@ -397,9 +393,7 @@ class SlamSystem:
             self._unrefined.add(mf.index)
             return FrameTracked(mf.index, mf.timestamp, T_pred.detach().double().cpu().numpy(), math.nan, 0.0)
         res = self.tracker.track(mf, T_pred)
-        reason = tracking_failure(res.T_world_cam, T_pred, res.loss, self.recent_losses, self.cfg.tracking)
-        if reason is None and front is not None:
-            reason = frontend_disagreement(res.T_world_cam, T_pred, history[-1], front.median_depth, self.cfg.frontend)
+        reason = self._refinement_failure(res, T_pred, history[-1], front)
         if reason is None and front is None and self.frontend is not None and len(self.keyframes) > 2:
             log.info("frame %d: the frontend has no pose (too few tracked landmarks)", mf.index)
         # On a detection the frontend's pose (else the motion model's) is kept.
@@ -417,6 +411,16 @@ class SlamSystem:
             self.recent_losses = (self.recent_losses + [res.loss])[-10:]
         self.poses[mf.index] = T.detach()
         return FrameTracked(mf.index, mf.timestamp, T.detach().double().cpu().numpy(), res.loss, res.seconds, reason)
+
+    def _refinement_failure(self, res, T_pred: torch.Tensor, T_prev: torch.Tensor,
+                            front: FrontendPose | None) -> str | None:
+        """Why the tracker's result `res` must not be trusted (None: it may): a tracking loss
+        against the start `T_pred`, or, with the frontend's estimate `front` (whose pose `T_pred`
+        is), a disagreement with it; `T_prev` is the previous frame's pose."""
+        reason = tracking_failure(res.T_world_cam, T_pred, res.loss, self.recent_losses, self.cfg.tracking)
+        if reason is None and front is not None:
+            reason = frontend_disagreement(res.T_world_cam, T_pred, T_prev, front.median_depth, self.cfg.frontend)
+        return reason
 
     # -- the classical frontend (no-ops without one) ------------------------------------
     @contextmanager
@@ -471,13 +475,6 @@ class SlamSystem:
             return None
         return np.stack(list(self.frontend.landmarks.values()))
 
-    def _frontend_poses(self) -> dict[int, np.ndarray]:
-        """The frontend's own poses (PnP, then its bundle adjustment), by frame: consistent with
-        each other where the refined keyframes are not ({} without a frontend)."""
-        if self.frontend is None:
-            return {}
-        return {**self.frontend.own, **self.frontend.poses}
-
     def _map(self, current: int, iters: int, bundle_adjust: bool = True, closing: bool = False) -> list[MapUpdated]:
         """Plan a mapping call and submit it; the calls that have finished come back as events
         (this one at once with the inline executor)."""
@@ -485,8 +482,9 @@ class SlamSystem:
         anchor = self.order[0]
         ba = ba_frames(window, current, anchor) if bundle_adjust and self.cfg.mapping.ba_start < 1.0 else set()
         if self.stereo is not None:
+            # Pairs posed by the frontend: consistent with each other where refined keyframes are not.
             self.stereo.update(window, self.frames, self.poses, self.keyframes, self.bound, self._landmarks(),
-                               self._frontend_poses())
+                               self.frontend.placed() if self.frontend is not None else None)
         mode = self.cfg.loss.slam_prior_alignment
         if mode == "map":
             for k in window:
@@ -581,5 +579,8 @@ class SlamSystem:
         hold the frontend's pose moved with the map's corrections of the keyframes around them
         (`pose_corrections.py`; the poses tracking goes on from are not changed)."""
         anchors = (self.mapped_frames | set(self.keyframes)) & set(self.poses)
-        poses = spread_corrections(self.order, self.poses, self._frontend_at, anchors, self._unrefined)
+        # In the poses' float32, as tracking started from them (an unmoved keyframe: no correction).
+        frontend = {k: torch.as_tensor(f.T_world_cam, dtype=self.poses[k].dtype, device=self.poses[k].device)
+                    for k, f in self._frontend_at.items() if k in self.poses}
+        poses = spread_corrections(self.order, self.poses, frontend, anchors, self._unrefined)
         return [self.timestamps[i] for i in self.order], [poses[i].double().cpu().numpy() for i in self.order]

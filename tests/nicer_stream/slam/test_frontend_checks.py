@@ -268,7 +268,7 @@ def test_the_last_frames_refinement_before_the_closing_call_passes_the_frontend_
         for f in _frames(8):
             slam.step(f)
         last = slam.order[-1]
-        assert last in slam._unrefined and last in slam._frontend_depth, "nothing checked"
+        assert last in slam._unrefined and last in slam._frontend_at, "nothing checked"
         before = slam.poses[last].clone()
         with monkeypatch.context() as m:
             m.setattr(Tracker, "track", off)
