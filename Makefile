@@ -17,7 +17,6 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m nicer_stream.model.grid_kernel
 	$(PY) -m nicer_stream.model.softplus
 	$(PY) -m nicer_stream.denormals
-	$(PY) -m nicer_stream.mapping.row_adam
 	touch $@
 
 demo: setup

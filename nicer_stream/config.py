@@ -153,10 +153,6 @@ class MappingConfig:
     """Colour grid learning-rate factor."""
     lr_pose: float = 1e-3
     """Learning rate of window poses during local BA."""
-    grid_adam: str = "dense"
-    """Adam over the feature-grid tables: 'dense' (torch's Adam: every row every step) or
-    'lazy' (only the rows with a gradient this step, as Instant-NGP does for its hash tables;
-    `mapping/row_adam.py`)."""
     every: int = 5
     """Map every this many frames."""
     keyframe_every: int = 10

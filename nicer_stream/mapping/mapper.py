@@ -17,7 +17,6 @@ from nicer_stream.geometry.se3 import se3_exp
 from nicer_stream.losses import LossTerms, total_loss
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.objective import mapping_terms
-from nicer_stream.mapping.row_adam import RowAdam
 from nicer_stream.mapping.ray_sampling import batch_rays
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
@@ -34,10 +33,6 @@ class MappingStats:
     seconds: float
 
 
-ADAM_BETAS, ADAM_EPS = (0.9, 0.99), 1e-15
-GRID_GROUPS = ("coarse", "fine", "color_grid")  # `SceneModel.param_groups` holding one grid table each
-
-
 class Mapper:
     """Owns the scene optimiser. `poses` maps frame index -> T_world_cam (4, 4) tensors."""
 
@@ -46,17 +41,9 @@ class Mapper:
         groups = model.param_groups(cfg.mapping)
         if beta.cfg.beta_mode == "global":
             groups["beta"] = {"params": [beta.log_beta], "lr": cfg.mapping.lr}
-        # 'lazy': the grid tables' groups leave torch's Adam for one over their touched rows.
-        self.row_adam = None
-        if cfg.mapping.grid_adam == "lazy":
-            tables = {}
-            for name in GRID_GROUPS:
-                group = groups.pop(name)
-                tables[name] = (group["params"][0], group["lr"])
-            self.row_adam = RowAdam(tables, betas=ADAM_BETAS, eps=ADAM_EPS)
         self.group_names = list(groups)
         # fused Adam: one kernel over the ~20M grid parameters, ~5x faster than the default on CPU.
-        self.opt = torch.optim.Adam(list(groups.values()), betas=ADAM_BETAS, eps=ADAM_EPS, fused=True)
+        self.opt = torch.optim.Adam(list(groups.values()), betas=(0.9, 0.99), eps=1e-15, fused=True)
         # Persistent gradient buffers for the grid tables, zeroed in place each iteration:
         # the row gathers add into them (model/gather.py) instead of allocating.
         for t in model.grid_tables():
@@ -84,8 +71,6 @@ class Mapper:
         self.opt.step()
         for p, g in kept:
             p.grad = g
-        if self.row_adam is not None:  # also zeroes the tables' touched gradient rows
-            self.row_adam.step(frozen)
 
     def _eikonal_points(self, n: int, use_fine: bool) -> torch.Tensor | None:
         if n <= 0:
@@ -115,8 +100,6 @@ class Mapper:
         pose_opt = torch.optim.Adam(list(xi.values()), lr=m.lr_pose) if xi else None
         terms = LossTerms()
         loss = torch.zeros(())
-        if self.row_adam is not None:  # its steps zero only touched rows: start from clean buffers
-            self.row_adam.zero_grad()
         it = 0
         while it < iters:
             if stop is not None and stop():

@@ -72,8 +72,6 @@ class SlamSystem:
             raise UserError(f"loss.slam_prior_alignment must be lstsq, map or flow, got {cfg.loss.slam_prior_alignment!r}")
         if cfg.tracking.init not in ("previous", "constant_velocity", "flow"):
             raise UserError(f"tracking.init must be previous, constant_velocity or flow, got {cfg.tracking.init!r}")
-        if cfg.mapping.grid_adam not in ("dense", "lazy"):
-            raise UserError(f"mapping.grid_adam must be dense or lazy, got {cfg.mapping.grid_adam!r}")
         if cfg.mapping.init not in ("first_frame", "two_view", "auto"):
             raise UserError(f"mapping.init must be first_frame, two_view or auto, got {cfg.mapping.init!r}")
         if cfg.tracking.frontend not in ("classical", "none", "auto"):

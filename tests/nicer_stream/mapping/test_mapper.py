@@ -1,7 +1,6 @@
-"""Mapper: the stage schedule freezes what it says, with persistent gradient buffers (either grid Adam)."""
+"""Mapper: the stage schedule freezes what it says, with persistent gradient buffers."""
 from dataclasses import replace
 
-import pytest
 import torch
 
 from nicer_stream.config import load
@@ -14,14 +13,13 @@ from sources import open_source
 from sources.base import SourceOptions
 
 
-@pytest.mark.parametrize("grid_adam", ["dense", "lazy"])
-def test_frozen_groups_stay_put_and_grad_buffers_persist(tmp_path, tiny_toml, grid_adam):
+def test_frozen_groups_stay_put_and_grad_buffers_persist(tmp_path, tiny_toml):
     path = tmp_path / "tiny.toml"
     path.write_text(tiny_toml)
     cfg = load("fast", path)
     cfg = replace(cfg, model=replace(cfg.model, color_levels=4, color_res_max=64, color_log2_table=12,
                                      fine_levels=2, fine_res_min=16, fine_res_max=24),
-                  mapping=replace(cfg.mapping, rays=128, fine_start=0.5, ba_start=1.0, grid_adam=grid_adam),
+                  mapping=replace(cfg.mapping, rays=128, fine_start=0.5, ba_start=1.0),
                   render=replace(cfg.render, beta_mode="fixed", beta_fixed=0.02))
     frames = list(open_source("synthetic:room?frames=6", SourceOptions(max_side=32, stride=3)))
     mfs = [MapFrame.from_frame(f.without_ground_truth(), None, torch.device("cpu")) for f in frames]
@@ -41,6 +39,3 @@ def test_frozen_groups_stay_put_and_grad_buffers_persist(tmp_path, tiny_toml, gr
     mapper.optimise(mfs, poses, 4, color_start=0.0)  # the fine grid joins at half, colour at once
     assert not torch.equal(fine.detach(), before[1]) and not torch.equal(color.detach(), before[2])
     assert all(t.grad is b for t, b in zip(model.grid_tables(), bufs))
-    if grid_adam == "lazy":  # its steps zero the rows they touched: the buffers are clean again
-        assert all(not t.grad.any() for t in model.grid_tables())
-        assert 0 < mapper.row_adam.touched["fine"] < len(fine)
