@@ -88,6 +88,16 @@ def mapping_on_worker(req: RunRequest) -> bool:
     return req.mapping_worker == "on" or req.device.startswith("cuda") or available_cores() >= 4
 
 
+def renders_on_sink_worker(device: str, slam_threads: int) -> bool:
+    """Whether the live map renders run on the sink worker (a GPU, or a core the SLAM thread's
+    `slam_threads` intra-op threads leave free) or on the SLAM thread. On a CPU with no spare
+    core the worker's one render thread and the SLAM thread's two made three busy threads on
+    two cores, and the SLAM thread's parallel regions waited for whichever was descheduled:
+    `make demo` 205 s without a sink, 228-237 s with one, for ~20 s of renders
+    (docs/performance.md, stop 36)."""
+    return device.startswith("cuda") or available_cores() > slam_threads
+
+
 def _report_error(e: Exception) -> str:
     """The error in one line on the console (its traceback at debug level); returns that line."""
     error = one_line(e)
@@ -133,9 +143,12 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
 
     sink = make_sink(list(req.sinks)) if req.sinks else None
     live = None
-    if sink is not None and not req.sync:  # sink calls and live renders on the sink worker
+    if sink is not None and not req.sync:  # sink calls on the sink worker
         sink = SinkWorker(sink)
-        live = LiveMapOutputs(sink.sink, slam, req.live_mesh_every, submit=sink.submit)
+        if renders_on_sink_worker(req.device, all_threads):
+            live = LiveMapOutputs(sink.sink, slam, req.live_mesh_every, submit=sink.submit)
+        else:  # rendered on this thread with all its cores, logged through the worker
+            live = LiveMapOutputs(sink, slam, req.live_mesh_every)
     elif sink is not None:
         live = LiveMapOutputs(sink, slam, req.live_mesh_every)
     pacer = Pacer(req.realtime)

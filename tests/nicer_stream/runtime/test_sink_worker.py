@@ -85,3 +85,44 @@ def test_live_updates_overtaken_in_the_queue_are_skipped_and_the_newest_is_logge
     live(MapUpdated(0, (0,), 0.5, 10, 1.0), intr=None)
     queued[-1]()
     assert emitted == [3, 0]
+
+
+def test_without_a_spare_core_live_renders_run_on_the_slam_thread_and_logging_on_the_worker(monkeypatch):
+    import nicer_stream.runtime.live_outputs as lo
+    import nicer_stream.runtime.slam_run as sr
+    from nicer_stream.types import Intrinsics
+
+    monkeypatch.setattr(sr, "available_cores", lambda: 2)
+    assert not sr.renders_on_sink_worker("cpu", 2)
+    assert sr.renders_on_sink_worker("cpu", 1) and sr.renders_on_sink_worker("cuda:0", 2)
+
+    render_threads = []
+
+    class View:
+        rgb, depth, normal = np.zeros((2, 2, 3)), np.zeros((2, 2)), np.zeros((2, 2, 3))
+
+    def render(*args, **kwargs):
+        render_threads.append(threading.current_thread().name)
+        return View()
+
+    class Sink(Recorder):
+        def log_map_render(self, index, *args):
+            self.calls.append(("render", index))
+            self.threads.add(threading.current_thread().name)
+
+    class NoVoxels:
+        def voxel_betas(self):
+            return np.zeros((0, 3)), np.zeros(0)
+
+    monkeypatch.setattr(lo, "render_image", render)
+    slam = FakeSlam()
+    slam.cfg = type("Cfg", (), {"render": None})()
+    slam.map_view = lambda: ("model", NoVoxels())
+    inner = Sink()
+    worker = SinkWorker(inner)
+    live = LiveMapOutputs(worker, slam, mesh_every=0)  # as the runtime builds it without a spare core
+    intr = Intrinsics(fx=2.0, fy=2.0, cx=1.0, cy=1.0, width=4, height=4)
+    live(MapUpdated(1, (1,), 0.5, 10, 1.0), intr=intr)
+    worker.close()
+    assert render_threads == [threading.current_thread().name]
+    assert ("render", 1) in inner.calls and inner.threads == {"sinks"}
