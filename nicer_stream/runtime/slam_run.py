@@ -145,11 +145,9 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     live = None
     if sink is not None and not req.sync:  # sink calls on the sink worker
         sink = SinkWorker(sink)
-        if renders_on_sink_worker(req.device, all_threads):
-            live = LiveMapOutputs(sink.sink, slam, req.live_mesh_every, submit=sink.submit)
-        else:  # rendered on this thread with all its cores, logged through the worker
-            live = LiveMapOutputs(sink, slam, req.live_mesh_every)
-    elif sink is not None:
+    if isinstance(sink, SinkWorker) and renders_on_sink_worker(req.device, all_threads):
+        live = LiveMapOutputs(sink.sink, slam, req.live_mesh_every, submit=sink.submit)
+    elif sink is not None:  # rendered on this thread (--sync, or no core to spare), logged through `sink`
         live = LiveMapOutputs(sink, slam, req.live_mesh_every)
     pacer = Pacer(req.realtime)
     n, intr, kept, last, waiting, error = 0, None, {}, None, {}, None
