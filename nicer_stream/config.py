@@ -169,6 +169,10 @@ class MappingConfig:
     """Size of the recent-keyframe pool."""
     eikonal_points: int = 1024
     """Extra uniformly sampled points for the Eikonal term per iteration."""
+    batched_terms: bool = True
+    """Compute the loss terms for all window frames at once (`mapping/batched_objective.py`)
+    when they share size and intrinsics; False: frame by frame (`mapping/objective.py`, the
+    reference). The same terms either way."""
     init: str = "first_frame"
     """How the first mapping fixes scale and shift: 'first_frame' (at frame 0: the prior's
     shift from the normal prior, Sec. 3.4 otherwise), 'two_view' (wait for frame

@@ -12,7 +12,7 @@ import torch
 from nicer_stream.losses.photometric import masked_mean
 
 # Relative variance below which the rendered depth is treated as constant.
-_VAR_EPS = 1e-10
+VAR_EPS = 1e-10
 
 
 def _masked_moments(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor | None):
@@ -31,7 +31,7 @@ def _masked_moments(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor
 
 def _degenerate(n: torch.Tensor, mean_p: torch.Tensor, var_p: torch.Tensor) -> bool:
     """Fewer than 2 samples, or a (numerically) constant prediction."""
-    return bool(n < 2) or bool(var_p <= _VAR_EPS * (1.0 + mean_p * mean_p))
+    return bool(n < 2) or bool(var_p <= VAR_EPS * (1.0 + mean_p * mean_p))
 
 
 def scale_shift_lstsq(

@@ -50,17 +50,27 @@ def bilinear_sample(image: torch.Tensor, uv: torch.Tensor) -> torch.Tensor:
     Differentiable w.r.t. uv (and image).
     """
     H, W, C = image.shape
-    u = uv[:, 0].to(image.dtype).clamp(0, W - 1)
-    v = uv[:, 1].to(image.dtype).clamp(0, H - 1)
+    return bilinear_sample_rows(image.reshape(H * W, C), H, W, uv)
+
+
+def bilinear_sample_rows(rows: torch.Tensor, H: int, W: int, uv: torch.Tensor,
+                         first_row: torch.Tensor | None = None) -> torch.Tensor:
+    """`bilinear_sample` of images stored as rows: (K * H * W, C) `rows` holds K images of
+    H x W in row-major order; pixel i of `uv` (N, 2) is read from the image starting at row
+    `first_row[i]` (N,) int64 (None: 0, a single image) -> (N, C)."""
+    u = uv[:, 0].to(rows.dtype).clamp(0, W - 1)
+    v = uv[:, 1].to(rows.dtype).clamp(0, H - 1)
     # Top-left neighbour, kept one pixel from the far edge so +1 stays in range.
     u0 = u.detach().floor().clamp(0, max(W - 2, 0))
     v0 = v.detach().floor().clamp(0, max(H - 2, 0))
     au, av = (u - u0)[:, None], (v - v0)[:, None]
     iu0, iv0 = u0.long(), v0.long()
     iu1, iv1 = (iu0 + 1).clamp(max=W - 1), (iv0 + 1).clamp(max=H - 1)
-    flat = image.reshape(H * W, C)
-    c00, c01 = flat[iv0 * W + iu0], flat[iv0 * W + iu1]
-    c10, c11 = flat[iv1 * W + iu0], flat[iv1 * W + iu1]
+    r0, r1 = iv0 * W, iv1 * W
+    if first_row is not None:
+        r0, r1 = r0 + first_row, r1 + first_row
+    c00, c01 = rows[r0 + iu0], rows[r0 + iu1]
+    c10, c11 = rows[r1 + iu0], rows[r1 + iu1]
     top = c00 * (1 - au) + c01 * au
     bottom = c10 * (1 - au) + c11 * au
     return top * (1 - av) + bottom * av

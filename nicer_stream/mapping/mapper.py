@@ -15,6 +15,7 @@ from nicer_stream.config import SlamConfig
 from nicer_stream.denormals import flush_denormals
 from nicer_stream.geometry.se3 import se3_exp
 from nicer_stream.losses import LossTerms, total_loss
+from nicer_stream.mapping.batched_objective import FrameStack, mapping_terms_batched
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.objective import mapping_terms
 from nicer_stream.mapping.ray_sampling import batch_rays
@@ -100,6 +101,7 @@ class Mapper:
         pose_opt = torch.optim.Adam(list(xi.values()), lr=m.lr_pose) if xi else None
         terms = LossTerms()
         loss = torch.zeros(())
+        stack = FrameStack.build(frames) if m.batched_terms else None
         it = 0
         while it < iters:
             if stop is not None and stop():
@@ -114,7 +116,10 @@ class Mapper:
             rays, layout = batch_rays(frames, T, m.rays, self.gen)
             out = render_rays(self.model, self.beta, rays, self.cfg.render, use_fine=use_fine)
             extra = self._eikonal_points(m.eikonal_points, use_fine)
-            terms = mapping_terms(out, layout, self.cfg.loss, fixed_scale_shift, extra, self.rng)
+            if stack is not None and stack.fits(layout):
+                terms = mapping_terms_batched(out, layout, stack, self.cfg.loss, fixed_scale_shift, extra, self.rng)
+            else:
+                terms = mapping_terms(out, layout, self.cfg.loss, fixed_scale_shift, extra, self.rng)
             loss = total_loss(terms, self.cfg.loss.weights)
             self.opt.zero_grad(set_to_none=False)
             if pose_opt is not None:

@@ -17,7 +17,7 @@ def _mean(xs: list[torch.Tensor]) -> torch.Tensor | None:
     return torch.stack(xs).mean() if xs else None
 
 
-def _warp_partners(fr: FrameRays, layout: list[FrameRays], k: int, rng: random.Random) -> list[FrameRays]:
+def warp_partners(fr: FrameRays, layout: list[FrameRays], k: int, rng: random.Random) -> list[FrameRays]:
     """k other window frames drawn at random each iteration, those with a flow prior first:
     varied baselines constrain depth far better than the nearest (near-zero parallax) frames."""
     others = [o for o in layout if o.frame.index != fr.frame.index]
@@ -49,7 +49,7 @@ def mapping_terms(out: RenderOutput, layout: list[FrameRays], cfg: LossConfig,
             l1, ang = normal_loss(n_cam, n_prior, n_prior.abs().sum(-1) > 0)
             n_l1.append(l1)
             n_ang.append(ang)
-        partners = _warp_partners(fr, layout, cfg.warp_frames, rng or random.Random(0)) if (cfg.weights.warp > 0 or cfg.weights.flow > 0) else []
+        partners = warp_partners(fr, layout, cfg.warp_frames, rng or random.Random(0)) if (cfg.weights.warp > 0 or cfg.weights.flow > 0) else []
         if partners:
             uvs, valids, imgs = [], [], []
             for p in partners:
