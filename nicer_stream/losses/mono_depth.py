@@ -12,26 +12,28 @@ import torch
 from nicer_stream.losses.photometric import masked_mean
 
 # Relative variance below which the rendered depth is treated as constant.
-VAR_EPS = 1e-10
+_VAR_EPS = 1e-10
 
 
-def _masked_moments(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor | None):
-    """Float64 count, means, var(pred) and cov(pred, target) over the mask (no grad)."""
+def masked_moments(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor | None):
+    """Float64 count, means, var(pred) and cov(pred, target) over the mask along the last
+    dimension (no grad): (N,) inputs give 0-dim tensors, (R, N) one value per row."""
     p, t = pred.detach().double(), target.detach().double()
     m = torch.ones_like(p, dtype=torch.bool) if mask is None else mask.to(torch.bool)
     m = m & torch.isfinite(p) & torch.isfinite(t)
-    n = m.sum()
+    n = m.sum(-1)
     nf = n.clamp_min(1).double()
     p, t = torch.where(m, p, 0.0), torch.where(m, t, 0.0)
-    mp, mt = p.sum() / nf, t.sum() / nf
+    mp, mt = p.sum(-1) / nf, t.sum(-1) / nf
     # Centred sums: better conditioned than the raw normal equations.
-    dp, dt = torch.where(m, p - mp, 0.0), torch.where(m, t - mt, 0.0)
-    return n, mp, mt, (dp * dp).sum() / nf, (dp * dt).sum() / nf
+    dp, dt = torch.where(m, p - mp[..., None], 0.0), torch.where(m, t - mt[..., None], 0.0)
+    return n, mp, mt, (dp * dp).sum(-1) / nf, (dp * dt).sum(-1) / nf
 
 
-def _degenerate(n: torch.Tensor, mean_p: torch.Tensor, var_p: torch.Tensor) -> bool:
-    """Fewer than 2 samples, or a (numerically) constant prediction."""
-    return bool(n < 2) or bool(var_p <= VAR_EPS * (1.0 + mean_p * mean_p))
+def degenerate_fit(n: torch.Tensor, mean_p: torch.Tensor, var_p: torch.Tensor) -> torch.Tensor:
+    """Element-wise over `masked_moments`' outputs: fewer than 2 samples, or a (numerically)
+    constant prediction (no unique (w, q))."""
+    return (n < 2) | (var_p <= _VAR_EPS * (1.0 + mean_p * mean_p))
 
 
 def scale_shift_lstsq(
@@ -44,8 +46,8 @@ def scale_shift_lstsq(
     are ignored. Degenerate input (< 2 valid samples or constant pred) has no
     unique solution: returns the identity (1, 0).
     """
-    n, mp, mt, var_p, cov = _masked_moments(pred, target, mask)
-    if _degenerate(n, mp, var_p):
+    n, mp, mt, var_p, cov = masked_moments(pred, target, mask)
+    if degenerate_fit(n, mp, var_p):
         w, q = torch.ones((), dtype=torch.float64), torch.zeros((), dtype=torch.float64)
     else:
         w = cov / var_p
@@ -73,8 +75,8 @@ def mono_depth_loss(
     if fixed_scale_shift is not None:
         w, q = fixed_scale_shift
     else:
-        n, mp, _, var_p, _ = _masked_moments(pred_depth, prior_depth, valid)
-        if _degenerate(n, mp, var_p):
+        n, mp, _, var_p, _ = masked_moments(pred_depth, prior_depth, valid)
+        if degenerate_fit(n, mp, var_p):
             # Zero that stays on the graph, so it can be summed into a total loss.
             return torch.nan_to_num(pred_depth).sum() * 0.0
         w, q = scale_shift_lstsq(pred_depth, prior_depth, valid)

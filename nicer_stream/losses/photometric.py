@@ -9,17 +9,18 @@ import torch
 
 
 def masked_mean(values: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
-    """Mean of (N,) `values` over (N,) bool `mask` (all rays if None).
+    """Mean of (..., N) `values` over (..., N) bool `mask` (all rays if None), along the last
+    dimension: a 0-dim tensor for (N,) rays, one mean per row for (R, N).
 
-    Returns a 0-dim tensor; an empty selection gives 0 (still attached to the
-    graph, so callers can sum it into a loss) instead of NaN. Rays outside the
-    mask get zero gradient even if their values are non-finite.
+    An empty selection gives 0 (still attached to the graph, so callers can sum it into a
+    loss) instead of NaN. Rays outside the mask get zero gradient even if their values are
+    non-finite.
     """
     if mask is None:
-        return values.mean() if values.numel() else values.sum()
+        return values.mean(-1) if values.numel() else values.sum(-1)
     mask = mask.to(torch.bool)
     kept = torch.where(mask, values, torch.zeros_like(values))
-    return kept.sum() / mask.sum().clamp_min(1).to(values.dtype)
+    return kept.sum(-1) / mask.sum(-1).clamp_min(1).to(values.dtype)
 
 
 def rgb_l1(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:

@@ -18,8 +18,8 @@ import torch.nn.functional as F
 from nicer_stream.config import LossConfig
 from nicer_stream.geometry.camera import in_image, project, unproject
 from nicer_stream.geometry.se3 import invert
-from nicer_stream.losses import LossTerms, eikonal_loss
-from nicer_stream.losses.mono_depth import VAR_EPS
+from nicer_stream.losses import LossTerms, eikonal_loss, masked_mean
+from nicer_stream.losses.mono_depth import degenerate_fit, masked_moments
 from nicer_stream.losses.warping import bilinear_sample_rows
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.objective import warp_partners
@@ -70,27 +70,13 @@ class FrameStack:
                    for i, fr in enumerate(layout))
 
 
-def _row_means(values: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-    """(R, n) values, (R, n) bool -> (R,) `masked_mean` of each row (0 for an empty row)."""
-    kept = torch.where(mask, values, torch.zeros_like(values))
-    return kept.sum(-1) / mask.sum(-1).clamp_min(1).to(values.dtype)
-
-
 def _depth_rows(d: torch.Tensor, prior: torch.Tensor, fixed: list[tuple[float, float] | None]) -> torch.Tensor:
     """Eq. 10 per row: (R, n) rendered z-depth and relative prior -> (R,) `mono_depth_loss`,
     with (w, q) fitted per row where `fixed[r]` is None (0 for a degenerate fit)."""
     valid = (prior > 0) & torch.isfinite(prior)
     with torch.no_grad():
-        p, t = d.detach().double(), prior.double()
-        m = valid & torch.isfinite(p)
-        n = m.sum(-1)
-        nf = n.clamp_min(1).double()
-        p0, t0 = torch.where(m, p, 0.0), torch.where(m, t, 0.0)
-        mp, mt = p0.sum(-1) / nf, t0.sum(-1) / nf
-        dp = torch.where(m, p - mp[:, None], 0.0)
-        dt = torch.where(m, t - mt[:, None], 0.0)
-        var, cov = (dp * dp).sum(-1) / nf, (dp * dt).sum(-1) / nf
-        degenerate = (n < 2) | (var <= VAR_EPS * (1.0 + mp * mp))
+        n, mp, mt, var, cov = masked_moments(d, prior, valid)
+        degenerate = degenerate_fit(n, mp, var)
         w = torch.where(degenerate, 1.0, cov / var.clamp_min(1e-300))
         q = torch.where(degenerate, 0.0, mt - w * mp)
         for r, wq in enumerate(fixed):
@@ -102,7 +88,7 @@ def _depth_rows(d: torch.Tensor, prior: torch.Tensor, fixed: list[tuple[float, f
     if keep:
         k = torch.tensor(keep, device=d.device)
         res = w[k].to(d.dtype)[:, None] * d[k] + q[k].to(d.dtype)[:, None] - torch.where(valid[k], prior[k], 0.0)
-        out = out.index_put((k,), _row_means(res * res, valid[k]))
+        out = out.index_put((k,), masked_mean(res * res, valid[k]))
     return out
 
 
@@ -137,8 +123,8 @@ def mapping_terms_batched(out: RenderOutput, layout: list[FrameRays], stack: Fra
         n_cam = F.normalize(torch.bmm(out.normal.view(nfr, per, 3)[ri], R), dim=-1, eps=1e-8)  # R^T n, rows
         n_prior = stack.normal[grow[ri]]
         known = n_prior.abs().sum(-1) > 0  # zero normals are unknown (stereo priors)
-        n_l1 = _row_means((n_cam - n_prior).abs().sum(-1), known).mean()
-        n_ang = _row_means((1.0 - (n_cam * n_prior).sum(-1)).abs(), known).mean()
+        n_l1 = masked_mean((n_cam - n_prior).abs().sum(-1), known).mean()
+        n_ang = masked_mean((1.0 - (n_cam * n_prior).sum(-1)).abs(), known).mean()
 
     warp = flow = None
     if cfg.weights.warp > 0 or cfg.weights.flow > 0:
@@ -165,7 +151,7 @@ def mapping_terms_batched(out: RenderOutput, layout: list[FrameRays], stack: Fra
                     ok = torch.stack([v.reshape(-1)[p] for v, p in zip(fv, src_pix)])
                     jf = torch.tensor(with_flow, device=dev)
                     residual = (uv_dst[jf] - uv[jf]) - prior
-                    flow = _row_means(residual.abs().sum(-1), valid[jf] & ok).mean()
+                    flow = masked_mean(residual.abs().sum(-1), valid[jf] & ok).mean()
             if cfg.weights.warp > 0:
                 first = (k_of[di] * hw)[:, None].expand(len(pairs), per).reshape(-1)
                 seen = bilinear_sample_rows(stack.rgb, h, w, uv_dst.reshape(-1, 2), first).view(len(pairs), per, 3)
