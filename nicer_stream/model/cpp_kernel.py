@@ -4,13 +4,17 @@ torch's C++ extension loader compiles a source once (g++ and ninja; ~25 s) and c
 ~/.cache/torch_extensions, under a name that carries the checkout's path: torch rebuilds a cached
 extension whose source path changed, so two checkouts sharing one name rebuilt each other's at
 every process start. (A build killed midway still leaves a `lock` file there that the next build
-of the same checkout waits on: delete it.) Where a kernel cannot be built, on a GPU, for other
+of the same checkout waits on: delete it.) The kernels are built with `-march=native`, so the name
+also carries the CPU's model and instruction-set flags: a cache shared between machines (a
+network home directory) never loads a build made for another CPU. Where a kernel cannot be built, on a GPU, for other
 dtypes, or with NICER_STREAM_KERNELS=0, callers take their reference paths (tests compare both)."""
 from __future__ import annotations
 
 import hashlib
 import logging
 import os
+import platform
+from functools import lru_cache
 from pathlib import Path
 
 import torch
@@ -19,9 +23,23 @@ log = logging.getLogger(__name__)
 KERNEL_DIR = Path(__file__).parent / "kernels"
 
 
-def build_name(name: str, kernel_dir: Path = KERNEL_DIR) -> str:
-    """The extension's cache name: `name` and a hash of the checkout's kernel directory."""
-    return f"{name}_{hashlib.sha1(str(kernel_dir.resolve()).encode()).hexdigest()[:8]}"
+@lru_cache(maxsize=1)
+def cpu_identity() -> str:
+    """The CPU's model name and instruction-set flags (Linux: /proc/cpuinfo), else the platform's
+    processor string: what a `-march=native` build depends on."""
+    try:
+        lines = Path("/proc/cpuinfo").read_text().splitlines()
+    except OSError:
+        lines = []
+    keep = [ln.split(":", 1)[1].strip() for ln in lines if ln.split(":", 1)[0].strip() in ("model name", "flags")]
+    return "\n".join(dict.fromkeys(keep)) or f"{platform.machine()} {platform.processor()}"
+
+
+def build_name(name: str, kernel_dir: Path = KERNEL_DIR, cpu: str | None = None) -> str:
+    """The extension's cache name: `name` and a hash of the checkout's kernel directory and of the
+    CPU (`cpu_identity()` unless given)."""
+    key = f"{kernel_dir.resolve()}\n{cpu_identity() if cpu is None else cpu}"
+    return f"{name}_{hashlib.sha1(key.encode()).hexdigest()[:8]}"
 
 
 class CppKernel:

@@ -1,7 +1,7 @@
-"""The compiled kernels' cache names: one per checkout, stable within it."""
+"""The compiled kernels' cache names: one per checkout and CPU, stable within them."""
 from pathlib import Path
 
-from nicer_stream.model.cpp_kernel import KERNEL_DIR, build_name
+from nicer_stream.model.cpp_kernel import KERNEL_DIR, build_name, cpu_identity
 
 
 def test_build_name_is_stable_and_differs_between_checkouts(tmp_path):
@@ -14,3 +14,10 @@ def test_build_name_resolves_links(tmp_path):
     (tmp_path / "real").mkdir()
     (tmp_path / "link").symlink_to(tmp_path / "real")
     assert build_name("k", tmp_path / "link") == build_name("k", Path(tmp_path / "real"))
+
+
+def test_build_name_differs_between_cpus():
+    # -march=native builds: a cache shared by two machines must not hand one CPU's build to the other
+    assert build_name("k", cpu="AMD EPYC\nfma avx avx2") != build_name("k", cpu="Intel Xeon\nfma avx avx2 avx512f")
+    assert build_name("k", cpu=cpu_identity()) == build_name("k")
+    assert cpu_identity()  # something identifies this CPU
