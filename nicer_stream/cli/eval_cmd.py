@@ -75,7 +75,7 @@ def eval_command(
             raise UserError("no --source given and summary.json names none: pass --source URI (e.g. replica:PATH)")
     opts = SourceOptions(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side)
     src = open_source(source, opts)
-    report = evaluate_output_dir(outdir, src)
+    report = evaluate_output_dir(outdir, src, progress=lambda line: typer.echo(f"eval: {line}"))
     path = od.write_eval(outdir, report)
     typer.echo(format_table(report))
     typer.echo(f"wrote {path}")

@@ -12,6 +12,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import trimesh
@@ -153,9 +154,12 @@ def evaluate_output_dir(
     threshold: float = mesh_m.COMPLETION_THRESHOLD_M,
     seed: int = 0,
     heldout_views: int = 8,
+    progress: Callable[[str], None] | None = None,
 ) -> od.EvalReport:
     """Compare OUT's trajectory, renders and mesh with the GT of `source` (iterated once), and
-    up to `heldout_views` frames the map never saw rendered from scene.pt (eval/heldout.py)."""
+    up to `heldout_views` frames the map never saw rendered from scene.pt (eval/heldout.py).
+    `progress` gets a line as each step starts (the held-out renders take seconds each)."""
+    say = progress or (lambda line: None)
     out = Path(out_dir)
     if not out.is_dir():
         raise UserError(f"output directory {out} not found: give the OUTDIR of a 'nicer-stream run' or 'map'")
@@ -174,6 +178,7 @@ def evaluate_output_dir(
     gt_mesh = gt_mesh_fn() if est_mesh is not None and callable(gt_mesh_fn) else None
     builder = reference.ReferenceBuilder(voxel) if est_mesh is not None and gt_mesh is None else None
 
+    say("reading the source's ground truth")
     stamps, poses, views, cams = [], [], [], []
     for frame in source:
         stamps.append(frame.timestamp)
@@ -208,6 +213,7 @@ def evaluate_output_dir(
         elif builder is not None:
             ref, kind = builder.build(), "gt_depth_points"
         if ref is not None and len(ref.points):
+            say(f"mesh against the {'GT mesh' if kind == 'gt_mesh' else 'GT depth points'} ({len(ref.points)} points)")
             est = mesh_m.sample_mesh(est_mesh, mesh_samples, seed=seed)  # estimate world
             rep.mesh_pose_aligned = _mesh_report(est, align, ref, threshold, kind)
             if ref.normals is not None and registration.pins_similarity(ref.points, ref.normals):
@@ -221,8 +227,8 @@ def evaluate_output_dir(
         rep.scene_alignment = rep.scene_alignment or "poses"
     _image_metrics(rep, views, None if scene is None else scene.scale, None if align is None else align.scale)
     if picker is not None:
-        rep.heldout = _heldout_metrics(render_heldout(out / SCENE_FILE, picker.picked, Intrinsics(**summary.intrinsics)),
-                                       None if scene is None else scene.scale)
+        rendered = render_heldout(out / SCENE_FILE, picker.picked, Intrinsics(**summary.intrinsics), say)
+        rep.heldout = _heldout_metrics(rendered, None if scene is None else scene.scale)
     return rep
 
 

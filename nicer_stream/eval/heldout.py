@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import torch
@@ -42,16 +43,19 @@ class HeldOutPicker:
         self.seen += 1
 
 
-def render_heldout(scene_path: Path, picked: list[tuple[Frame, np.ndarray]],
-                   intr: Intrinsics) -> list[tuple[Frame, RenderedImage]]:
+def render_heldout(scene_path: Path, picked: list[tuple[Frame, np.ndarray]], intr: Intrinsics,
+                   progress: Callable[[str], None] | None = None) -> list[tuple[Frame, RenderedImage]]:
     """Each picked frame resized to the run's intrinsics `intr`, with the render of its tracked
-    pose (estimate world) from the saved scene; frames of another aspect are left out."""
+    pose (estimate world) from the saved scene; frames of another aspect are left out.
+    `progress` gets a line before each render."""
     if not picked:
         return []
     cfg, model, beta = load_scene(scene_path)
     out = []
-    for frame, T in picked:
+    for k, (frame, T) in enumerate(picked):
         f = resize_frame(frame, SourceOptions(max_side=max(intr.width, intr.height)))
         if (f.width, f.height) == (intr.width, intr.height):
+            if progress is not None:
+                progress(f"held-out view {k + 1}/{len(picked)} (frame {frame.index}): rendering")
             out.append((f, render_image(model, beta, torch.as_tensor(T, dtype=torch.float32), intr, cfg.render)))
     return out

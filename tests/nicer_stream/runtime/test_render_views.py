@@ -77,10 +77,15 @@ def test_eval_reports_views_the_map_never_saw(run_dir):
     from nicer_stream.eval.evaluate import evaluate_output_dir
     from sources import open_source
 
-    rep = evaluate_output_dir(run_dir, open_source("synthetic:room?frames=7"))
+    lines = []
+    rep = evaluate_output_dir(run_dir, open_source("synthetic:room?frames=7"), progress=lines.append)
     mapped = set(json.loads((run_dir / od.SUMMARY_FILE).read_text())["stats"]["mapped_frames"])
     h = rep.heldout
     assert h.frame_indices and not set(h.frame_indices) & mapped
+    # progress before each held-out render (seconds each at full size), after the source is read
+    assert lines[0] == "reading the source's ground truth"
+    assert [ln for ln in lines if ln.startswith("held-out view")] == [
+        f"held-out view {k + 1}/{len(h.frame_indices)} (frame {i}): rendering" for k, i in enumerate(h.frame_indices)]
     assert h.psnr_db is not None and np.isfinite(h.psnr_db) and h.depth_l1_m is not None
     assert h.lpips is None and "LPIPS" in h.note  # never faked
 
