@@ -317,12 +317,16 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
         print(f"writing outputs: {n_renders} renders{' and the mesh' if mapped else ''}", flush=True)
         with timer.stage("sinks"):
             poses_np = np.stack(poses) if poses else np.zeros((0, 4, 4))
+            done_renders = 0
             for i, t, T in zip(slam.order, times, poses):
                 if n_renders and kept.get(i) is not None and not stop.requested:
+                    done_renders += 1  # seconds each at full size: a line for each
+                    say(f"writing outputs: render {done_renders}/{n_renders} (frame {i})")
                     view = render_image(slam.model, slam.beta, torch.as_tensor(T, dtype=torch.float32), intr, cfg.render)
                     save_render(out, i, view, kept[i], t)
             mesh = None
             if mapped and len(poses):
+                say(f"writing outputs: the mesh ({cfg.mesh.resolution}^3 grid)")
                 try:
                     mesh = scene_mesh(slam.model, slam.beta, poses_np, intr, cfg, should_stop=lambda: stop.requested)
                 except MeshAborted:  # a stop during the full mesh: a coarse one in a second or two

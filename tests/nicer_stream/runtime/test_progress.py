@@ -34,3 +34,8 @@ def test_run_reports_every_mapping_call_on_stderr(tmp_path, tiny_config, capsys)
     assert err[0].startswith("first mapping (frames 0,2) 1/5 loss ")  # tiny config: first_iters = 5
     assert any(ln.startswith("first mapping (frames 0,2) 5/5 ") for ln in err)
     assert any(ln.startswith("closing mapping @ frame 2 4/4 ") for ln in err)  # final_iters = 4
+    # the end's renders (frames 0 and the last, --render-every 10) and the mesh each announce themselves
+    out = cap.out.splitlines()
+    assert out.index("writing outputs: 2 renders and the mesh") < out.index("writing outputs: render 1/2 (frame 0)")
+    assert out.index("writing outputs: render 2/2 (frame 2)") < next(
+        i for i, ln in enumerate(out) if ln.startswith("writing outputs: the mesh ("))

@@ -24,7 +24,7 @@ from nicer_stream.io.trajectory import read_tum
 MOMENTS = {
     "first_mapping": (("first_iters = 5", "first_iters = 100000"), r"first mapping"),
     "mid_sequence": (None, r"^frame\s+14\s+track loss"),
-    "mesh_extraction": (("resolution = 24", "resolution = 400"), r"^writing outputs"),
+    "mesh_extraction": (("resolution = 24", "resolution = 400"), r"^writing outputs: the mesh"),
 }
 
 
