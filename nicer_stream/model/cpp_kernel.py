@@ -14,6 +14,7 @@ import hashlib
 import logging
 import os
 import platform
+import sys
 from functools import lru_cache
 from pathlib import Path
 
@@ -54,8 +55,12 @@ class CppKernel:
         """The compiled module, or None when it cannot be built (warned once)."""
         if self._module is None and not self._failed:
             try:
-                from torch.utils.cpp_extension import load
+                from torch.utils.cpp_extension import _get_build_directory, load
 
+                if not any(Path(_get_build_directory(self.name, False)).glob("*.so")):
+                    # ~30 s of g++ with nothing else printed: say why the run waits
+                    print(f"compiling {self.source.name} for this CPU (once per checkout and CPU, ~30 s)",
+                          file=sys.stderr, flush=True)
                 self._module = load(name=self.name, sources=[str(self.source)], extra_cflags=self.cflags,
                                     extra_ldflags=["-fopenmp"], verbose=False)
             except Exception as e:  # no compiler, no ninja, ...: the reference path still works

@@ -21,3 +21,19 @@ def test_build_name_differs_between_cpus():
     assert build_name("k", cpu="AMD EPYC\nfma avx avx2") != build_name("k", cpu="Intel Xeon\nfma avx avx2 avx512f")
     assert build_name("k", cpu=cpu_identity()) == build_name("k")
     assert cpu_identity()  # something identifies this CPU
+
+
+def test_a_first_build_says_why_the_run_waits(tmp_path, monkeypatch, capsys):
+    import torch.utils.cpp_extension as ext
+
+    from nicer_stream.model.cpp_kernel import CppKernel
+
+    monkeypatch.setenv("TORCH_EXTENSIONS_DIR", str(tmp_path))
+    monkeypatch.setattr(ext, "load", lambda **kw: "module")  # no compiler run here
+    k = CppKernel("test_kernel", "grid_interp.cpp", [])
+    assert k.module() == "module"
+    assert "compiling grid_interp.cpp for this CPU" in capsys.readouterr().err
+    built = Path(ext._get_build_directory(k.name, False))
+    (built / f"{k.name}.so").write_bytes(b"")  # as a finished build leaves it
+    assert CppKernel("test_kernel", "grid_interp.cpp", []).module() == "module"
+    assert capsys.readouterr().err == ""  # cached: nothing to say
