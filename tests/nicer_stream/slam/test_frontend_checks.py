@@ -264,9 +264,13 @@ def test_the_last_frames_refinement_before_the_closing_call_passes_the_frontend_
     for c in (base, _refine_keyframes_without_checks(base)):
         torch.manual_seed(0)
         cv2.setRNGSeed(0)
-        slam = SlamSystem(c)
+        # The run itself with the checks opened: whether the tiny map's own refinements of frames
+        # 6-7 pass the default bounds depends on rounding (a CPU's vector width); a lost slot
+        # moves to the next frame and leaves nothing unrefined to check.
+        slam = SlamSystem(_refine_keyframes_without_checks(base))
         for f in _frames(8):
             slam.step(f)
+        slam.cfg = c  # the bounds under test, for the closing call's refinement
         last = slam.order[-1]
         assert last in slam._unrefined and last in slam._frontend_at, "nothing checked"
         before = slam.poses[last].clone()
