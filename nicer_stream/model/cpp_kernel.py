@@ -4,9 +4,10 @@ torch's C++ extension loader compiles a source once (g++ and ninja; ~25 s) and c
 ~/.cache/torch_extensions, under a name that carries the checkout's path: torch rebuilds a cached
 extension whose source path changed, so two checkouts sharing one name rebuilt each other's at
 every process start. (A build killed midway still leaves a `lock` file there that the next build
-of the same checkout waits on: delete it.) The kernels are built with `-march=native`, so the name
-also carries the CPU's model and instruction-set flags: a cache shared between machines (a
-network home directory) never loads a build made for another CPU. Where a kernel cannot be built, on a GPU, for other
+of the same checkout waits on: delete it.) The grid and activation kernels are built with
+`-march=native`, so the name also carries the CPU's model and instruction-set flags: a cache
+shared between machines (a network home directory) never loads a build made for another CPU.
+Where a kernel cannot be built, on a GPU, for other
 dtypes, or with NICER_STREAM_KERNELS=0, callers take their reference paths (tests compare both)."""
 from __future__ import annotations
 
@@ -54,13 +55,13 @@ class CppKernel:
     def module(self):
         """The compiled module, or None when it cannot be built (warned once)."""
         if self._module is None and not self._failed:
+            if not self._built_before():
+                # ~30 s of g++ with nothing else printed: say why the run waits
+                print(f"compiling {self.source.name} for this CPU (once per checkout and CPU, ~30 s)",
+                      file=sys.stderr, flush=True)
             try:
-                from torch.utils.cpp_extension import _get_build_directory, load
+                from torch.utils.cpp_extension import load
 
-                if not any(Path(_get_build_directory(self.name, False)).glob("*.so")):
-                    # ~30 s of g++ with nothing else printed: say why the run waits
-                    print(f"compiling {self.source.name} for this CPU (once per checkout and CPU, ~30 s)",
-                          file=sys.stderr, flush=True)
                 self._module = load(name=self.name, sources=[str(self.source)], extra_cflags=self.cflags,
                                     extra_ldflags=["-fopenmp"], verbose=False)
             except Exception as e:  # no compiler, no ninja, ...: the reference path still works
@@ -68,6 +69,17 @@ class CppKernel:
                 log.warning("%s not built (%s): using the slower pure-torch path", self.source.name,
                             str(e).splitlines()[0][:200])
         return self._module
+
+    def _built_before(self) -> bool:
+        """Whether torch's cache already holds a build of this name (True when that cannot be
+        told: `_get_build_directory` is torch's private helper, and the message is only a nicety
+        that must never take the compiled path away)."""
+        try:
+            from torch.utils.cpp_extension import _get_build_directory
+
+            return any(Path(_get_build_directory(self.name, False)).glob("*.so"))
+        except Exception:
+            return True
 
     def available(self, t: torch.Tensor) -> bool:
         """True when `t` can go through the compiled kernel (CPU, float32/float64, enabled, built)."""
