@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The measurements named in the issues (long: run one at a time on a 2-core CPU).
-# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|run-none|run-synth|run10|run10-paper|flow|ab|speedup|iters|frontend|street|jump|async|memory|batch] [OUTROOT]
+# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|seeds|run-none|run-synth|run10|run10-paper|flow|ab|speedup|iters|frontend|street|jump|async|memory|batch] [OUTROOT]
 # speedup: the Replica `run` of commit BASE (default c64946b; a git worktree in OUTROOT/base_worktree)
 #   and of this tree (uncommitted edits included) back to back, then scripts/speedup_table.py
 #   (~15 min). EXTRA="..." appends arguments to both runs (e.g. EXTRA="--max-frames 3"), NEW_EXTRA="..."
@@ -52,6 +52,18 @@ case "${1:-all}" in
              done
              ref=(); [ -f $OUT/map_oracle/eval.json ] && ref=(--reference $OUT/map_oracle)
              .venv/bin/python scripts/eval_table.py $OUT/run_seed0 $OUT/run_seed1 $OUT/run_seed2 "${ref[@]}" ;;
+  seeds)     # a config on three seeds and its table with means (docs/performance.md, stop 39: one seed
+             # decides nothing). CONFIG=overrides.toml (optional, no `seed` key), SOURCE= (default the
+             # Replica clip), PRIORS= (default oracle:clean).
+             mkdir -p $OUT
+             name=$(basename "${CONFIG:-fast}" .toml)
+             for s in 0 1 2; do
+               cfg=$OUT/${name}_seed$s.toml
+               echo "seed = $s" > $cfg
+               if [ -n "${CONFIG:-}" ]; then grep -v '^seed' "$CONFIG" >> $cfg || true; fi
+               t $NS run --source "${SOURCE:-$REPLICA}" --priors "${PRIORS:-oracle:clean}" --preset fast --config $cfg --out $OUT/${name}_seed$s
+             done
+             .venv/bin/python scripts/eval_table.py $OUT/${name}_seed0 $OUT/${name}_seed1 $OUT/${name}_seed2 ;;
   run-none)  t $NS run --source $REPLICA --priors none --preset fast --out $OUT/run_none ;;
   run10)     t $NS run --source $REPLICA --priors oracle --preset fast --max-frames 10 --out $OUT/run10_fast ;;
   run10-paper) t $NS run --source $REPLICA --priors oracle --preset paper --max-frames 10 --max-side 320 --render-every 100 --out $OUT/run10_paper ;;
@@ -118,5 +130,5 @@ case "${1:-all}" in
              speedup_run "$PWD" "$out/speedup_new" oracle:clean "${NEW_EXTRA:-}"
              .venv/bin/python scripts/speedup_table.py "$out/speedup_base" "$out/speedup_new" \
                --labels "$(git rev-parse --short "$base")" "$new" ;;
-  *) echo "usage: [BASE=commit] [EXTRA=args] $0 map|map-none|map-paper|map-synth|run|run-seeds|run-none|run10|run10-paper|run-synth|flow|speedup|iters|memory [OUTROOT]"; exit 2 ;;
+  *) echo "usage: [BASE=commit] [EXTRA=args] $0 map|map-none|map-paper|map-synth|run|run-seeds|seeds|run-none|run10|run10-paper|run-synth|flow|speedup|iters|memory [OUTROOT]"; exit 2 ;;
 esac
