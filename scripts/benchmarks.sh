@@ -37,6 +37,17 @@ sys.exit(f"imported from outside {sys.argv[1]}: {bad}" if bad else 0)' "$tree")
      --source "replica:$root/../shared/data/replica_room0_20f" --priors "$3" --preset fast --out "$dir" ${EXTRA:-} ${4:-})
   echo "wall $(cut -d' ' -f1 "$dir/time.txt") s, peak RSS $(cut -d' ' -f2 "$dir/time.txt") KB"
 }
+# seed_runs NAME SOURCE PRIORS [CONFIG]: `nicer-stream run` (`fast`) on seeds 0 1 2 into
+# OUT/NAME_seedN, each with CONFIG's overrides (a TOML file without a `seed` key) when given.
+seed_runs() {
+  mkdir -p $OUT
+  for s in 0 1 2; do
+    local cfg=$OUT/$1_seed$s.toml
+    echo "seed = $s" > $cfg
+    if [ -n "${4:-}" ]; then grep -v '^seed' "$4" >> $cfg || true; fi
+    t $NS run --source "$2" --priors "$3" --preset fast --config $cfg --out $OUT/$1_seed$s
+  done
+}
 case "${1:-all}" in
   map)       t $NS map --source $REPLICA --poses gt --priors oracle --preset fast --out $OUT/map_oracle ;;
   map-none)  t $NS map --source $REPLICA --poses gt --priors none --preset fast --out $OUT/map_none ;;
@@ -45,24 +56,14 @@ case "${1:-all}" in
   map-synth) t $NS map --source "synthetic:room?frames=60" --poses gt --priors oracle --preset fast --out $OUT/map_synth ;;
   run)       t $NS run --source $REPLICA --priors oracle --preset fast --out $OUT/run_oracle ;;
   run-seeds) # the Replica run for seeds 0 1 2 (results vary run to run: judge a change by the spread)
-             mkdir -p $OUT
-             for s in 0 1 2; do
-               echo "seed = $s" > $OUT/seed$s.toml
-               t $NS run --source $REPLICA --priors oracle --preset fast --config $OUT/seed$s.toml --out $OUT/run_seed$s
-             done
+             seed_runs run $REPLICA oracle
              ref=(); [ -f $OUT/map_oracle/eval.json ] && ref=(--reference $OUT/map_oracle)
              .venv/bin/python scripts/eval_table.py $OUT/run_seed0 $OUT/run_seed1 $OUT/run_seed2 "${ref[@]}" ;;
   seeds)     # a config on three seeds and its table with means (docs/performance.md, stop 39: one seed
              # decides nothing). CONFIG=overrides.toml (optional, no `seed` key), SOURCE= (default the
              # Replica clip), PRIORS= (default oracle:clean).
-             mkdir -p $OUT
              name=$(basename "${CONFIG:-fast}" .toml)
-             for s in 0 1 2; do
-               cfg=$OUT/${name}_seed$s.toml
-               echo "seed = $s" > $cfg
-               if [ -n "${CONFIG:-}" ]; then grep -v '^seed' "$CONFIG" >> $cfg || true; fi
-               t $NS run --source "${SOURCE:-$REPLICA}" --priors "${PRIORS:-oracle:clean}" --preset fast --config $cfg --out $OUT/${name}_seed$s
-             done
+             seed_runs "$name" "${SOURCE:-$REPLICA}" "${PRIORS:-oracle:clean}" "${CONFIG:-}"
              .venv/bin/python scripts/eval_table.py $OUT/${name}_seed0 $OUT/${name}_seed1 $OUT/${name}_seed2 ;;
   run-none)  t $NS run --source $REPLICA --priors none --preset fast --out $OUT/run_none ;;
   run10)     t $NS run --source $REPLICA --priors oracle --preset fast --max-frames 10 --out $OUT/run10_fast ;;

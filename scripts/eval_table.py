@@ -24,8 +24,9 @@ def _pct(x: float | None) -> str:
     return "-" if x is None else f"{100 * x:.1f}%"
 
 
-def values(out: Path) -> dict[str, float | None]:
-    """The table's numbers for one output directory (None where eval.json has none)."""
+def values(out: Path) -> dict:
+    """The table's numbers for one output directory (None where eval.json has none), and its
+    scene alignment."""
     e = od.read_eval(out)
     s = od.read_summary(out) if (out / od.SUMMARY_FILE).is_file() else None
     m, p = e.mesh, e.mesh_pose_aligned
@@ -33,32 +34,31 @@ def values(out: Path) -> dict[str, float | None]:
     return {"ate": e.ate_rmse_m, "depth": e.depth_l1_m, "depth_traj": e.depth_l1_pose_aligned_m,
             "acc": m.acc_m, "acc_traj": p.acc_m, "comp": m.comp_m, "comp_traj": p.comp_m,
             "ratio": m.comp_ratio, "ratio_traj": p.comp_ratio, "psnr": e.psnr_db, "gap": gap,
-            "wall": None if s is None else s.wall_s}
+            "wall": None if s is None else s.wall_s, "alignment": e.scene_alignment or "-"}
 
 
 def _db(x: float | None) -> str:
     return "-" if x is None else f"{x:.2f}"
 
 
-def _row(name: str, v: dict[str, float | None], alignment: str) -> str:
+def _row(name: str, v: dict) -> str:
     wall = "-" if v["wall"] is None else f"{v['wall']:.0f}"
     gap = "-" if v["gap"] is None else f"{100 * v['gap']:+.1f}%"
     return (f"| {name} | {_cm(v['ate'])} | {_cm(v['depth'])} ({_cm(v['depth_traj'])}) | "
             f"{_cm(v['acc'])} ({_cm(v['acc_traj'])}) | {_cm(v['comp'])} ({_cm(v['comp_traj'])}) | "
             f"{_pct(v['ratio'])} ({_pct(v['ratio_traj'])}) | {_db(v['psnr'])} | "
-            f"{gap} | {alignment} | {wall} |")
+            f"{gap} | {v['alignment']} | {wall} |")
 
 
 def row(out: Path) -> str:
-    return _row(str(out), values(out), od.read_eval(out).scene_alignment or "-")
+    return _row(str(out), values(out))
 
 
-def mean_row(outs: list[Path]) -> str:
-    """Means over `outs` of each column every one of them has."""
-    vals = [values(o) for o in outs]
+def mean_row(vals: list[dict]) -> str:
+    """Means over several runs' `values` of each number every one of them has."""
     mean = {k: (sum(v[k] for v in vals) / len(vals) if all(v[k] is not None for v in vals) else None)
-            for k in vals[0]}
-    return _row(f"mean of {len(outs)}", mean, "")
+            for k in vals[0] if k != "alignment"}
+    return _row(f"mean of {len(vals)}", {**mean, "alignment": ""})
 
 
 def bars(ref: Path, factor: float) -> str:
@@ -79,10 +79,11 @@ def main() -> None:
     if a.reference:
         print(row(a.reference))
         print(bars(a.reference, a.factor))
-    for out in a.outs:
-        print(row(out))
-    if len(a.outs) > 1:
-        print(mean_row(a.outs))
+    vals = [values(out) for out in a.outs]  # each eval.json read once
+    for out, v in zip(a.outs, vals):
+        print(_row(str(out), v))
+    if len(vals) > 1:
+        print(mean_row(vals))
 
 
 if __name__ == "__main__":

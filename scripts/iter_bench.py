@@ -74,20 +74,25 @@ def load(n_frames: int, max_side: int):
     return mfs, poses, bound
 
 
-def bench(name: str, iters: int, profile: bool) -> dict:
-    cfg = config_mod.preset(name)
-    side = cfg.max_side or 1200
-    mfs, poses, bound = load(5, side if name == "fast" else 320)
+def warmed_up(cfg, mfs, poses, bound, warmup_iters: int) -> tuple[Mapper, Tracker]:
+    """A mapper and a tracker over a map after `warmup_iters` mapping iterations (a warm-up, and
+    a map that is not the initial sphere); later calls time iterations in the last stage."""
     torch.manual_seed(0)
     model = SceneModel(cfg.model, bound)
     beta = BetaField(cfg.render)
     mapper = Mapper(model, beta, cfg, 0)
-    # Warm-up (and a map that is not the initial sphere), then timed iterations in the last stage.
-    mapper.optimise(mfs, poses, 3 if name == "fast" else 1, ba_indices={mfs[-1].index})
+    mapper.optimise(mfs, poses, warmup_iters, ba_indices={mfs[-1].index})
+    return mapper, Tracker(model, beta, cfg.tracking, cfg.render, 0)
+
+
+def bench(name: str, iters: int, profile: bool) -> dict:
+    cfg = config_mod.preset(name)
+    side = cfg.max_side or 1200
+    mfs, poses, bound = load(5, side if name == "fast" else 320)
+    mapper, tracker = warmed_up(cfg, mfs, poses, bound, 3 if name == "fast" else 1)
     t = time.perf_counter()
     mapper.optimise(mfs, poses, iters, ba_indices={mfs[-1].index})
     map_s = (time.perf_counter() - t) / iters
-    tracker = Tracker(model, beta, cfg.tracking, cfg.render, 0)
     tr_cfg = tracker.cfg
     tracker.cfg = type(tr_cfg)(**{**tr_cfg.__dict__, "iters": iters})
     tracker.track(mfs[-1], poses[mfs[-1].index])

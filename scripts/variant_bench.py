@@ -19,24 +19,11 @@ from pathlib import Path
 
 import torch
 
-from iter_bench import load
+from iter_bench import load, warmed_up
 from nicer_stream import config as config_mod
 from nicer_stream.mapping import mapper as mapper_mod
 from nicer_stream.mapping.mapper import Mapper
-from nicer_stream.model.scene import SceneModel
 from nicer_stream.render import renderer as renderer_mod
-from nicer_stream.render.beta import BetaField
-from nicer_stream.tracking.tracker import Tracker
-
-
-def build(cfg, mfs, poses, bound):
-    """A mapper and tracker over a map warmed up by 3 mapping iterations."""
-    torch.manual_seed(0)
-    model = SceneModel(cfg.model, bound)
-    beta = BetaField(cfg.render)
-    mapper = Mapper(model, beta, cfg, 0)
-    mapper.optimise(mfs, poses, 3, ba_indices={mfs[-1].index})
-    return mapper, Tracker(model, beta, cfg.tracking, cfg.render, 0)
 
 
 @contextmanager
@@ -84,7 +71,7 @@ def main() -> None:
     mfs, poses, bound = load(5, 320)
     cfgs = {"fast": config_mod.preset("fast")}
     cfgs.update({Path(v).stem: config_mod.load("fast", v) for v in a.variants})
-    setups = {name: build(cfg, mfs, poses, bound) for name, cfg in cfgs.items()}
+    setups = {name: warmed_up(cfg, mfs, poses, bound, 3) for name, cfg in cfgs.items()}
     times = {name: ([], []) for name in setups}
     for _ in range(a.rounds):
         for name, (mapper, tracker) in setups.items():
