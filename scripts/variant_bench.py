@@ -6,7 +6,7 @@ Each variant is a TOML file of overrides, as `nicer-stream run --config` takes (
 render samples, ...). Replica clip, `oracle:clean` priors, GT poses, 5 frames: a benchmark of
 compute, not of accuracy (`scripts/iter_bench.py` has the FLOP counts).
 
-Usage: .venv/bin/python scripts/variant_bench.py [VARIANT.toml ...] [--rounds 3] [--iters 10] [--phases]
+Usage: .venv/bin/python scripts/variant_bench.py [VARIANT.toml ...] [--rounds 3] [--iters 10] [--warmup 3] [--phases]
 """
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ def phase_timers(mapper: Mapper, acc: dict[str, float]):
             return r
         setattr(owner, name, timed)
 
-    wrap(renderer_mod, "probe_weights", "probe pass (no grad)")
+    wrap(renderer_mod, "probe_pass", "probe pass (no grad)")
     wrap(mapper_mod, "batch_rays", "ray sampling")
     wrap(mapper_mod, "mapping_terms_batched", "loss terms")
     wrap(mapper.model.geometry, "forward", "geometry forward (samples + Eikonal points)")
@@ -67,11 +67,13 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--iters", type=int, default=10, help="mapping iterations per round (tracking: the preset's)")
     ap.add_argument("--phases", action="store_true", help="also split plain `fast`'s mapping iterations by phase")
+    ap.add_argument("--warmup", type=int, default=3,
+                    help="mapping iterations before the clock (a map trained longer has more of its samples behind surfaces)")
     a = ap.parse_args()
     mfs, poses, bound = load(5, 320)
     cfgs = {"fast": config_mod.preset("fast")}
     cfgs.update({Path(v).stem: config_mod.load("fast", v) for v in a.variants})
-    setups = {name: warmed_up(cfg, mfs, poses, bound, 3) for name, cfg in cfgs.items()}
+    setups = {name: warmed_up(cfg, mfs, poses, bound, a.warmup) for name, cfg in cfgs.items()}
     times = {name: ([], []) for name in setups}
     for _ in range(a.rounds):
         for name, (mapper, tracker) in setups.items():

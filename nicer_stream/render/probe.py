@@ -46,18 +46,32 @@ def composite_deltas(t: torch.Tensor, far: torch.Tensor) -> torch.Tensor:
 def probe_weights(model: SceneModel, beta: BetaField, x: torch.Tensor, deltas: torch.Tensor, use_fine: bool,
                   stop_tau: float | None = None, segment: int = SEGMENT) -> torch.Tensor:
     """Weights (R, P) of the probes x (R, P, 3) (normalised, sorted along each ray) with
-    interval lengths `deltas` (R, P).
+    interval lengths `deltas` (R, P): `probe_pass`'s weights."""
+    return probe_pass(model, beta, x, deltas, use_fine, stop_tau, segment)[0]
+
+
+# The SDF `probe_pass` reports at probes it skipped: behind the point where their ray's light was
+# spent, so "inside a solid" (density 1/beta) is what they stand for.
+SKIPPED_SDF = -1e3
+
+
+@torch.no_grad()
+def probe_pass(model: SceneModel, beta: BetaField, x: torch.Tensor, deltas: torch.Tensor, use_fine: bool,
+               stop_tau: float | None = None, segment: int = SEGMENT) -> tuple[torch.Tensor, torch.Tensor]:
+    """Weights (R, P) and SDF (R, P) of the probes x (R, P, 3) (normalised, sorted along each
+    ray) with interval lengths `deltas` (R, P).
 
     `stop_tau` None evaluates every probe (the reference). Otherwise the P probes are taken
     in runs of `segment` front to back, and a ray whose optical depth has passed `stop_tau`
-    after a run skips the rest (density 0 there): each weight then differs from the
-    reference's by less than exp(-stop_tau), their sum by less than that too. With fewer
-    than two runs' worth of probes (`fast`: 32) the one pass is cheaper."""
+    after a run skips the rest (density 0 there, SDF `SKIPPED_SDF`): each weight then differs
+    from the reference's by less than exp(-stop_tau), their sum by less than that too. With
+    fewer than two runs' worth of probes (`fast`: 32) the one pass is cheaper."""
     r, p = deltas.shape
     if stop_tau is None or p < 2 * segment:
         sdf = probe_sdf(model, x.reshape(-1, 3), use_fine).reshape(r, p)
-        return render_weights(laplace_density(sdf, beta(x)), deltas)
+        return render_weights(laplace_density(sdf, beta(x)), deltas), sdf
     sigma = deltas.new_zeros(r, p)
+    sdf_all = deltas.new_full((r, p), SKIPPED_SDF)
     tau = deltas.new_zeros(r)
     alive = torch.arange(r, device=deltas.device)
     for c0 in range(0, p, segment):
@@ -66,8 +80,9 @@ def probe_weights(model: SceneModel, beta: BetaField, x: torch.Tensor, deltas: t
         sdf = probe_sdf(model, xs.reshape(-1, 3), use_fine).reshape(xs.shape[:2])
         sig = laplace_density(sdf, beta(xs))
         sigma[alive, c0:c1] = sig
+        sdf_all[alive, c0:c1] = sdf
         tau[alive] += (sig * deltas[alive, c0:c1]).sum(-1)
         alive = alive[tau[alive] < stop_tau]
         if alive.numel() == 0:
             break
-    return render_weights(sigma, deltas)
+    return render_weights(sigma, deltas), sdf_all

@@ -14,7 +14,8 @@ from nicer_stream.geometry.camera import pixel_grid, rays_world
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.render.density import laplace_density
-from nicer_stream.render.probe import SEGMENT, composite_deltas, probe_sdf, probe_weights
+from nicer_stream.render.live_samples import estimated_sdf, kept_indices, live_mask
+from nicer_stream.render.probe import SEGMENT, composite_deltas, probe_pass, probe_sdf
 from nicer_stream.render.sampling import ray_box, sample_pdf, stratified
 from nicer_stream.render.volume import accumulate, render_weights
 from nicer_stream.types import Intrinsics
@@ -33,8 +34,9 @@ class RayBatch:
 class RenderOutput:
     """Per ray: rgb (R, 3), depth (R,) z-depth m, ray_dist (R,) m, normal (R, 3) world
     (unnormalised weighted sum, Eq. 6), opacity (R,). Per sample (with gradient):
-    points (R*S, 3) normalised, sdf_grad (R*S, 3) d sdf / d x_norm (without autograd:
-    only at the samples with non-negligible weight)."""
+    points (R*S, 3) normalised, sdf_grad (N, 3) d sdf / d x_norm at the N samples that went
+    through the network (all R*S, or those the light reaches with `min_transmittance` > 0; without
+    autograd: those with non-negligible weight)."""
 
     rgb: torch.Tensor
     depth: torch.Tensor
@@ -63,8 +65,8 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
     with torch.no_grad():
         t_probe = stratified(near, far, cfg.n_probe, jitter)
         x_probe = o[:, None] + t_probe[..., None] * d[:, None]
-        w_p = probe_weights(model, beta, x_probe, composite_deltas(t_probe, far), use_fine, cfg.probe_stop_tau,
-                            probe_segment)
+        w_p, sdf_p = probe_pass(model, beta, x_probe, composite_deltas(t_probe, far), use_fine, cfg.probe_stop_tau,
+                                probe_segment)
         mids = (t_probe[:, 1:] + t_probe[:, :-1]) / 2
         bins = torch.cat([near[:, None], mids, far[:, None]], -1)
         t_imp = sample_pdf(bins, w_p, cfg.n_importance, jitter)
@@ -75,11 +77,25 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
     view = d[:, None].expand(r, s, 3).reshape(-1, 3)
     bx = beta(x)
     bx = bx.reshape(r, s) if bx.dim() else bx
-    if torch.is_grad_enabled():
+    live = None
+    if torch.is_grad_enabled() and cfg.min_transmittance > 0:
+        sdf_est = estimated_sdf(t_probe, sdf_p, t)
+        live = kept_indices(live_mask(sdf_est, bx, t, far, cfg.min_transmittance).reshape(-1))
+    if torch.is_grad_enabled() and live is None:
         geo = model.geometry(x, use_fine=use_fine, with_grad=True)
         w = render_weights(laplace_density(geo.sdf.reshape(r, s), bx), composite_deltas(t, far))
         normal = geo.grad / geo.grad.norm(dim=-1, keepdim=True).clamp_min(1e-6)
         rgb_s = model.color(x, normal, view, geo.z_coarse, geo.z_fine)
+        sdf_grad = geo.grad
+    elif torch.is_grad_enabled():
+        # Only the samples the light reaches go through the network (`render/live_samples.py`);
+        # the others keep the probes' SDF estimate (no gradient), no normal and no colour.
+        geo = model.geometry(x[live], use_fine=use_fine, with_grad=True)
+        sdf = sdf_est.reshape(-1).index_put((live,), geo.sdf)
+        w = render_weights(laplace_density(sdf.reshape(r, s), bx), composite_deltas(t, far))
+        n_live = geo.grad / geo.grad.norm(dim=-1, keepdim=True).clamp_min(1e-6)
+        normal = x.new_zeros(r * s, 3).index_put((live,), n_live)
+        rgb_s = x.new_zeros(r * s, 3).index_put((live,), model.color(x[live], n_live, view[live], geo.z_coarse, geo.z_fine))
         sdf_grad = geo.grad
     else:
         # Inference: weights from the SDF alone, then normals and colour only at the

@@ -13,10 +13,17 @@ def render_weights(sigma: torch.Tensor, deltas: torch.Tensor) -> torch.Tensor:
     cheaper on CPU than that of cumprod(1 - alpha).
     """
     tau = sigma * deltas
-    alpha = 1 - exp_neg(tau)
+    return _transmittance(tau) * (1 - exp_neg(tau))
+
+
+def transmittance(sigma: torch.Tensor, deltas: torch.Tensor) -> torch.Tensor:
+    """(R, S) densities and interval lengths -> (R, S) T_i, the light reaching sample i (1 at the first)."""
+    return _transmittance(sigma * deltas)
+
+
+def _transmittance(tau: torch.Tensor) -> torch.Tensor:
     acc = torch.cumsum(tau, dim=-1)
-    trans = exp_neg(torch.cat([torch.zeros_like(acc[:, :1]), acc[:, :-1]], dim=-1))
-    return trans * alpha
+    return exp_neg(torch.cat([torch.zeros_like(acc[:, :1]), acc[:, :-1]], dim=-1))
 
 
 def accumulate(weights: torch.Tensor, values: torch.Tensor) -> torch.Tensor:

@@ -242,3 +242,34 @@ def test_a_whole_image_with_early_stopped_probes_matches_every_probe():
     ref = render_image(model, beta, T, INTR, dataclasses.replace(cfg, probe_stop_tau=None))
     assert np.abs(fast.depth - ref.depth).max() < 1e-4
     assert np.abs(fast.rgb - ref.rgb).max() < 1e-4
+
+
+def test_rendering_only_the_live_samples_keeps_the_render_and_its_gradients():
+    """`min_transmittance`: the samples behind the sphere's wall skip the network; the render,
+    the scene's gradients and the pose's match rendering every sample (the dropped weights sum
+    to less than the threshold), at a fraction of the network's samples."""
+    cfg = dataclasses.replace(SMALL, sphere_radius=0.6)
+    # A sharp wall (as in a trained map) and probes far apart next to it (as `fast`'s are in a room).
+    rc = RenderConfig(n_probe=16, n_importance=16, n_uniform=8, beta_mode="fixed", beta_fixed=0.003)
+    model, beta = _model(cfg), BetaField(rc)
+    T0 = _pose_at_centre()
+    uv = pixel_grid(INTR)
+    target = torch.rand(len(uv), 3, generator=torch.Generator().manual_seed(3))
+
+    def run(rc: RenderConfig):
+        model.zero_grad(set_to_none=True)
+        xi = torch.zeros(6, requires_grad=True)
+        torch.manual_seed(5)  # the same jittered samples
+        out = render_rays(model, beta, rays_for_pixels(uv, INTR, T0 @ se3_exp(xi)), rc)
+        ((out.rgb - target).abs().sum() + out.depth.sum() + out.normal.sum()).backward()
+        grads = torch.cat([p.grad.reshape(-1) for p in model.parameters() if p.grad is not None])
+        return out, grads, xi.grad
+
+    ref, g_ref, xi_ref = run(rc)
+    live, g_live, xi_live = run(dataclasses.replace(rc, min_transmittance=1e-4))
+    n = len(uv) * (rc.n_importance + rc.n_uniform)
+    assert len(ref.sdf_grad) == n and len(live.sdf_grad) < 0.7 * n  # samples behind the wall dropped
+    for a, b in ((live.rgb, ref.rgb), (live.depth, ref.depth), (live.normal, ref.normal), (live.opacity, ref.opacity)):
+        torch.testing.assert_close(a, b, atol=1e-3, rtol=1e-3)
+    assert (g_live - g_ref).norm() < 2e-3 * g_ref.norm()
+    assert (xi_live - xi_ref).norm() < 2e-3 * xi_ref.norm()

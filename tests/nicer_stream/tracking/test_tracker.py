@@ -71,3 +71,14 @@ def test_gauss_newton_recovers_perturbed_poses_in_few_iterations(fitted, pose_er
         r_ratio.append(r1 / r0)
     print("GN t ratios", [round(v, 3) for v in t_ratio], "r ratios", [round(v, 3) for v in r_ratio])
     assert sorted(t_ratio)[3] < 0.5 and sorted(r_ratio)[3] < 0.5, (t_ratio, r_ratio)
+
+def test_tracking_renders_with_its_own_transmittance_cut():
+    """`[tracking] min_transmittance` reaches the tracker's renders; mapping's stays 0."""
+    cfg = load("fast")
+    model = SceneModel(replace(cfg.model, color_levels=4, color_res_max=64, color_log2_table=12),
+                       SceneBound((0.0, 0.0, 0.0), 2.0, "config"))
+    beta = BetaField(cfg.render)
+    assert cfg.render.min_transmittance == 0.0
+    assert Tracker(model, beta, cfg.tracking, cfg.render).render.min_transmittance == cfg.tracking.min_transmittance > 0
+    off = Tracker(model, beta, replace(cfg.tracking, min_transmittance=0.0), cfg.render)
+    assert off.render.min_transmittance == 0.0
