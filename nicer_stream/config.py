@@ -90,6 +90,10 @@ class RenderConfig:
     its ray). 0: every sample goes through it. Mapping keeps 0: its samples behind surfaces
     also carry the Eikonal term (Replica, 1e-4: depth L1 3.2 -> 3.7-3.8 cm over three seeds);
     tracking sets its own (`TrackingConfig.min_transmittance`)."""
+    keep_band_m: float = 0.0
+    """With `min_transmittance`: samples within this distance behind a surface (estimated SDF
+    above -keep_band_m) go through the network however little light reaches them, so the
+    Eikonal term keeps its points there. 0: none kept for that."""
     near_m: float = 0.05
     """Closest sample distance from the camera, metres."""
     beta_mode: str = "adaptive"

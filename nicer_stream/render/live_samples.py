@@ -42,11 +42,13 @@ def estimated_sdf(t_probe: torch.Tensor, sdf_probe: torch.Tensor, t: torch.Tenso
 
 @torch.no_grad()
 def live_mask(sdf_est: torch.Tensor, beta_t: torch.Tensor | float, t: torch.Tensor, far: torch.Tensor,
-              min_transmittance: float) -> torch.Tensor:
-    """(R, S) bool: samples whose estimated transmittance is at least `min_transmittance`.
+              min_transmittance: float, keep_band: float = 0.0) -> torch.Tensor:
+    """(R, S) bool: samples whose estimated transmittance is at least `min_transmittance`, or
+    whose estimated SDF is above -`keep_band` (just behind a surface; 0: none kept for that).
     sdf_est (R, S) at the sorted samples t (R, S); beta_t their betas ((R, S) or a scalar);
     far (R,). The first sample of every ray is always live (T = 1 there)."""
-    return transmittance(laplace_density(sdf_est, beta_t), composite_deltas(t, far)) >= min_transmittance
+    live = transmittance(laplace_density(sdf_est, beta_t), composite_deltas(t, far)) >= min_transmittance
+    return live | (sdf_est > -keep_band) if keep_band > 0 else live
 
 
 # The network's row count is rounded up to a multiple of this: oneDNN builds a kernel for each

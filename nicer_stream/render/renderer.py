@@ -77,25 +77,25 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
     view = d[:, None].expand(r, s, 3).reshape(-1, 3)
     bx = beta(x)
     bx = bx.reshape(r, s) if bx.dim() else bx
-    live = None
-    if torch.is_grad_enabled() and cfg.min_transmittance > 0:
-        sdf_est = estimated_sdf(t_probe, sdf_p, t)
-        live = kept_indices(live_mask(sdf_est, bx, t, far, cfg.min_transmittance).reshape(-1))
-    if torch.is_grad_enabled() and live is None:
-        geo = model.geometry(x, use_fine=use_fine, with_grad=True)
-        w = render_weights(laplace_density(geo.sdf.reshape(r, s), bx), composite_deltas(t, far))
+    if torch.is_grad_enabled():
+        # With `min_transmittance`, only the samples the light reaches go through the network
+        # (`render/live_samples.py`); the others keep the probes' SDF estimate (no gradient), no
+        # normal and no colour.
+        kept = None
+        if cfg.min_transmittance > 0:
+            sdf_est = estimated_sdf(t_probe, sdf_p, t)
+            band = cfg.keep_band_m / b.half_extent
+            kept = kept_indices(live_mask(sdf_est, bx, t, far, cfg.min_transmittance, band).reshape(-1))
+        xs, vs = (x, view) if kept is None else (x[kept], view[kept])
+        geo = model.geometry(xs, use_fine=use_fine, with_grad=True)
         normal = geo.grad / geo.grad.norm(dim=-1, keepdim=True).clamp_min(1e-6)
-        rgb_s = model.color(x, normal, view, geo.z_coarse, geo.z_fine)
-        sdf_grad = geo.grad
-    elif torch.is_grad_enabled():
-        # Only the samples the light reaches go through the network (`render/live_samples.py`);
-        # the others keep the probes' SDF estimate (no gradient), no normal and no colour.
-        geo = model.geometry(x[live], use_fine=use_fine, with_grad=True)
-        sdf = sdf_est.reshape(-1).index_put((live,), geo.sdf)
+        rgb_s = model.color(xs, normal, vs, geo.z_coarse, geo.z_fine)
+        sdf = geo.sdf
+        if kept is not None:
+            sdf = sdf_est.reshape(-1).index_put((kept,), sdf)
+            normal = x.new_zeros(r * s, 3).index_put((kept,), normal)
+            rgb_s = x.new_zeros(r * s, 3).index_put((kept,), rgb_s)
         w = render_weights(laplace_density(sdf.reshape(r, s), bx), composite_deltas(t, far))
-        n_live = geo.grad / geo.grad.norm(dim=-1, keepdim=True).clamp_min(1e-6)
-        normal = x.new_zeros(r * s, 3).index_put((live,), n_live)
-        rgb_s = x.new_zeros(r * s, 3).index_put((live,), model.color(x[live], n_live, view[live], geo.z_coarse, geo.z_fine))
         sdf_grad = geo.grad
     else:
         # Inference: weights from the SDF alone, then normals and colour only at the

@@ -59,3 +59,14 @@ def test_kept_indices_keep_every_live_sample_in_whole_buckets():
     assert kept_indices(torch.ones(100, dtype=torch.bool), 64) is None  # rounding up reaches N: all of them
     assert kept_indices(live, bucket=1).tolist() == live.nonzero()[:, 0].tolist()
 
+
+
+def test_a_band_behind_the_wall_stays_live():
+    """`keep_band`: samples less than the band behind the wall stay live however dark."""
+    t = torch.linspace(0.1, 3.0, 64).expand(8, 64)
+    sdf = 1.0 - t  # a wall at 1
+    far = torch.full((8,), 3.0)
+    plain = live_mask(sdf, 0.01, t, far, 1e-4)
+    banded = live_mask(sdf, 0.01, t, far, 1e-4, keep_band=0.5)
+    assert torch.equal(banded, plain | (t < 1.5)) and (banded & ~plain).any()
+    assert not banded[t > 1.5].any()
