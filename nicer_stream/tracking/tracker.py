@@ -52,7 +52,8 @@ class Tracker:
         # Tracking may use fewer samples: the surface is already known.
         self.render = replace(render, **{k: getattr(cfg, k) for k in ("n_probe", "n_importance", "n_uniform")
                                          if getattr(cfg, k) is not None})
-        self.render = replace(self.render, min_transmittance=cfg.min_transmittance)
+        # Its own transmittance cut, and no band behind surfaces: tracking has no Eikonal term.
+        self.render = replace(self.render, min_transmittance=cfg.min_transmittance, keep_band_m=0.0)
         self.gen = torch.Generator().manual_seed(seed)
 
     @torch.no_grad()

@@ -73,7 +73,7 @@ def test_gauss_newton_recovers_perturbed_poses_in_few_iterations(fitted, pose_er
     assert sorted(t_ratio)[3] < 0.5 and sorted(r_ratio)[3] < 0.5, (t_ratio, r_ratio)
 
 def test_tracking_renders_with_its_own_transmittance_cut():
-    """`[tracking] min_transmittance` reaches the tracker's renders; mapping's stays 0."""
+    """`[tracking] min_transmittance` reaches the tracker's renders, without mapping's band."""
     cfg = load("fast")
     model = SceneModel(replace(cfg.model, color_levels=4, color_res_max=64, color_log2_table=12),
                        SceneBound((0.0, 0.0, 0.0), 2.0, "config"))
@@ -82,3 +82,5 @@ def test_tracking_renders_with_its_own_transmittance_cut():
     assert Tracker(model, beta, cfg.tracking, cfg.render).render.min_transmittance == cfg.tracking.min_transmittance > 0
     off = Tracker(model, beta, replace(cfg.tracking, min_transmittance=0.0), cfg.render)
     assert off.render.min_transmittance == 0.0
+    banded = replace(cfg.render, keep_band_m=0.1)  # mapping's band is for its Eikonal term: none here
+    assert Tracker(model, beta, cfg.tracking, banded).render.keep_band_m == 0.0
