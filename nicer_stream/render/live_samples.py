@@ -35,12 +35,6 @@ def interpolate_along_rays(t_knots: torch.Tensor, values: torch.Tensor, t: torch
 
 
 @torch.no_grad()
-def estimated_sdf(t_probe: torch.Tensor, sdf_probe: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-    """SDF (R, S) at the samples t (R, S), interpolated from the probes (R, P) at t_probe."""
-    return interpolate_along_rays(t_probe, sdf_probe, t)
-
-
-@torch.no_grad()
 def live_mask(sdf_est: torch.Tensor, beta_t: torch.Tensor | float, t: torch.Tensor, far: torch.Tensor,
               min_transmittance: float, keep_band: float = 0.0) -> torch.Tensor:
     """(R, S) bool: samples whose estimated transmittance is at least `min_transmittance`, or

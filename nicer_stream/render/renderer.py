@@ -14,7 +14,7 @@ from nicer_stream.geometry.camera import pixel_grid, rays_world
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.render.density import laplace_density
-from nicer_stream.render.live_samples import estimated_sdf, kept_indices, live_mask
+from nicer_stream.render.live_samples import interpolate_along_rays, kept_indices, live_mask
 from nicer_stream.render.probe import SEGMENT, composite_deltas, probe_pass, probe_sdf
 from nicer_stream.render.sampling import ray_box, sample_pdf, stratified
 from nicer_stream.render.volume import accumulate, render_weights
@@ -83,7 +83,7 @@ def render_rays(model: SceneModel, beta: BetaField, rays: RayBatch, cfg: RenderC
         # normal and no colour.
         kept = None
         if cfg.min_transmittance > 0:
-            sdf_est = estimated_sdf(t_probe, sdf_p, t)
+            sdf_est = interpolate_along_rays(t_probe, sdf_p, t)  # no gradient: probes and t have none
             band = cfg.keep_band_m / b.half_extent
             kept = kept_indices(live_mask(sdf_est, bx, t, far, cfg.min_transmittance, band).reshape(-1))
         xs, vs = (x, view) if kept is None else (x[kept], view[kept])

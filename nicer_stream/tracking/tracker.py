@@ -50,10 +50,10 @@ class Tracker:
             raise UserError(f"tracking.residual must be 'rgb' or 'grey', got {cfg.residual!r}")
         self.model, self.beta, self.cfg = model, beta, cfg
         # Tracking may use fewer samples: the surface is already known.
-        self.render = replace(render, **{k: getattr(cfg, k) for k in ("n_probe", "n_importance", "n_uniform")
-                                         if getattr(cfg, k) is not None})
         # Its own transmittance cut, and no band behind surfaces: tracking has no Eikonal term.
-        self.render = replace(self.render, min_transmittance=cfg.min_transmittance, keep_band_m=0.0)
+        self.render = replace(render, min_transmittance=cfg.min_transmittance, keep_band_m=0.0,
+                              **{k: getattr(cfg, k) for k in ("n_probe", "n_importance", "n_uniform")
+                                 if getattr(cfg, k) is not None})
         self.gen = torch.Generator().manual_seed(seed)
 
     @torch.no_grad()

@@ -2,7 +2,7 @@
 import torch
 
 from nicer_stream.render.density import laplace_density
-from nicer_stream.render.live_samples import estimated_sdf, interpolate_along_rays, kept_indices, live_mask
+from nicer_stream.render.live_samples import interpolate_along_rays, kept_indices, live_mask
 from nicer_stream.render.probe import composite_deltas
 from nicer_stream.render.volume import render_weights, transmittance
 
@@ -38,7 +38,7 @@ def test_a_wall_across_the_rays_marks_exactly_the_samples_behind_it():
     far = torch.full((r,), 3.0)
     wall = 0.8 + 0.4 * torch.rand(r, 1, generator=g)
     sdf_true = wall - t
-    sdf_est = estimated_sdf(t_probe, wall - t_probe, t)
+    sdf_est = interpolate_along_rays(t_probe, wall - t_probe, t)
     torch.testing.assert_close(sdf_est, sdf_true)
     for thr in (1e-2, 1e-4):
         live = live_mask(sdf_est, beta, t, far, thr)
@@ -58,7 +58,6 @@ def test_kept_indices_keep_every_live_sample_in_whole_buckets():
     assert live[idx].sum() == live.sum() and len(set(idx.tolist())) == len(idx)  # all live, none twice
     assert kept_indices(torch.ones(100, dtype=torch.bool), 64) is None  # rounding up reaches N: all of them
     assert kept_indices(live, bucket=1).tolist() == live.nonzero()[:, 0].tolist()
-
 
 
 def test_a_band_behind_the_wall_stays_live():
