@@ -78,9 +78,9 @@ def test_tracking_renders_with_its_own_transmittance_cut():
     model = SceneModel(replace(cfg.model, color_levels=4, color_res_max=64, color_log2_table=12),
                        SceneBound((0.0, 0.0, 0.0), 2.0, "config"))
     beta = BetaField(cfg.render)
-    assert cfg.render.min_transmittance == 0.0
-    assert Tracker(model, beta, cfg.tracking, cfg.render).render.min_transmittance == cfg.tracking.min_transmittance > 0
-    off = Tracker(model, beta, replace(cfg.tracking, min_transmittance=0.0), cfg.render)
+    mapping = replace(cfg.render, min_transmittance=1e-3, keep_band_m=0.1)
+    tracker = Tracker(model, beta, cfg.tracking, mapping)
+    assert tracker.render.min_transmittance == cfg.tracking.min_transmittance > 0
+    assert tracker.render.keep_band_m == 0.0  # mapping's band is for its Eikonal term: none here
+    off = Tracker(model, beta, replace(cfg.tracking, min_transmittance=0.0), mapping)
     assert off.render.min_transmittance == 0.0
-    banded = replace(cfg.render, keep_band_m=0.1)  # mapping's band is for its Eikonal term: none here
-    assert Tracker(model, beta, cfg.tracking, banded).render.keep_band_m == 0.0
