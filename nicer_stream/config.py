@@ -87,14 +87,15 @@ class RenderConfig:
     min_transmittance: float = 0.0
     """With gradient: samples whose transmittance, estimated from the probes' SDF, is below this
     skip the network (`render/live_samples.py`: behind a surface, each adds less than this to
-    its ray). 0 (`paper`): every sample goes through it. `fast`: 1e-4 with `keep_band_m`, as
-    samples behind surfaces also carry the Eikonal term (Replica, 1e-4 without a band: depth
-    L1 3.2 -> 3.7-3.8 cm over three seeds); tracking sets its own
-    (`TrackingConfig.min_transmittance`)."""
+    its ray). 0: every sample goes through it. Mapping keeps 0: its samples behind surfaces
+    also carry the Eikonal term (Replica, 1e-4: depth L1 3.2 -> 3.7-3.8 cm over three seeds);
+    tracking sets its own (`TrackingConfig.min_transmittance`)."""
     keep_band_m: float = 0.0
     """With `min_transmittance`: samples within this distance behind a surface (estimated SDF
     above -keep_band_m) go through the network however little light reaches them, so the
-    Eikonal term keeps its points there. 0: none kept for that; `fast`: 0.1."""
+    Eikonal term keeps its points there. 0: none kept for that. With 1e-4 and 0.1 m mapping took
+    0.95x as long on Replica but lost 1 dB of PSNR over five seeds, one map badly
+    (docs/performance.md, stop 41): an option, not a preset's."""
     near_m: float = 0.05
     """Closest sample distance from the camera, metres."""
     beta_mode: str = "adaptive"
@@ -439,12 +440,7 @@ def fast() -> SlamConfig:
         model=ModelConfig(color_levels=12, color_res_max=512, color_log2_table=17),
         # Count weight 500: at 1024 rays x 16 samples the paper's c1 would leave beta at c0
         # (4 cm here) for the whole clip; with it, well-observed voxels reach ~1 cm.
-        # Samples behind surfaces skip the network, except within 10 cm behind them, where the
-        # Eikonal term shapes the SDF (render/live_samples.py): mapping 0.89x as long; Replica
-        # oracle:clean (3 seeds) and the demo room (5) within the seeds' spread, depth and PSNR
-        # better on the demo; without the band depth L1 rose 3.2 -> 3.7 cm (docs/performance.md).
-        render=RenderConfig(n_probe=32, n_importance=12, n_uniform=4, beta_count_weight=500.0,
-                            min_transmittance=1e-4, keep_band_m=0.1),
+        render=RenderConfig(n_probe=32, n_importance=12, n_uniform=4, beta_count_weight=500.0),
         # Depth and normals weigh more than Eq. 12's: those weights were set for Omnidata's
         # relative depth at 1200 px; at 320 px they left depth to the RGB terms and the
         # surfaces where the initial sphere put them (Replica map, oracle: depth L1 13 cm ->

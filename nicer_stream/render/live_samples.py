@@ -9,10 +9,9 @@ the two probes around each sample (an SDF is close to linear along a ray near a 
 On a Replica map after 300 mapping iterations (`fast`, 1024 rays x 16 samples), T < 1e-4
 marks 20% of the samples; the exact weights of those it marks sum to at most 7e-4 per ray.
 
-Tracking uses it (`[tracking] min_transmittance`), and `fast`'s mapping with a band: there
-the samples behind surfaces also carry the Eikonal term, and without those just behind them
-the Replica map lost depth accuracy on three seeds; the samples within `keep_band_m` (10 cm)
-behind a surface stay live (docs/performance.md, stops 40-41).
+Tracking uses it (`[tracking] min_transmittance`). Mapping does not by default: there the
+samples behind surfaces also carry the Eikonal term, and without them the Replica map lost
+depth accuracy on three seeds (docs/performance.md, stop 40).
 """
 from __future__ import annotations
 
