@@ -38,6 +38,12 @@ class TrackingResult:
     seconds: float
 
 
+def decayed_lr(lr: float, decay: float, step: int, steps: int) -> float:
+    """Learning rate of step `step` of `steps` (0-based), geometric from `lr` at the first to
+    `lr * decay` at the last (`decay` 1: constant)."""
+    return lr * decay ** (step / max(steps - 1, 1))
+
+
 class Tracker:
     """Reads the scene (never writes it): gradients flow to the pose twist only."""
 
@@ -142,6 +148,9 @@ class Tracker:
             if not torch.isfinite(grad).all():
                 break
             xi.grad = grad
+            # Near the optimum Adam's steps stay ~lr long, each fitting fresh pixels: the final pose
+            # scatters with the pixel draw unless the rate falls (`lr_decay`).
+            opt.param_groups[0]["lr"] = decayed_lr(self.cfg.lr, self.cfg.lr_decay, it, self.cfg.iters)
             opt.step()
         if self.cfg.keep == "last" and torch.isfinite(xi).all():
             best_xi = xi.detach()

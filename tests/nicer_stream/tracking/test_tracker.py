@@ -8,7 +8,7 @@ from nicer_stream.geometry.se3 import se3_exp
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
-from nicer_stream.tracking.tracker import Tracker
+from nicer_stream.tracking.tracker import Tracker, decayed_lr
 
 
 def test_tracker_recovers_perturbed_pose(fitted, pose_error):
@@ -84,3 +84,30 @@ def test_tracking_renders_with_its_own_transmittance_cut():
     assert tracker.render.keep_band_m == 0.0  # mapping's band is for its Eikonal term: none here
     off = Tracker(model, beta, replace(cfg.tracking, min_transmittance=0.0), mapping)
     assert off.render.min_transmittance == 0.0
+
+
+def test_decayed_lr_runs_geometrically_from_lr_to_lr_times_decay():
+    assert decayed_lr(3e-3, 0.1, 0, 20) == 3e-3
+    assert abs(decayed_lr(3e-3, 0.1, 19, 20) - 3e-4) < 1e-12
+    mid = [decayed_lr(1.0, 0.1, k, 5) for k in range(5)]
+    assert all(abs(b / a - 0.1 ** 0.25) < 1e-12 for a, b in zip(mid, mid[1:]))
+    assert decayed_lr(3e-3, 1.0, 7, 20) == 3e-3 and decayed_lr(3e-3, 0.1, 0, 1) == 3e-3
+
+
+def test_a_decaying_rate_scatters_less_over_pixel_draws(fitted, pose_error):
+    """Near the optimum Adam's steps stay ~lr long, each on fresh pixels: the final pose scatters
+    with the pixel draw (the tracker's seed). Ending on a small rate scatters less, and the poses
+    still end near the GT pose they start at."""
+    cfg, frames, mfs, poses, model, beta = fitted
+    T_gt = poses[frames[4].index]
+
+    def spread(**kw):
+        tc = replace(cfg.tracking, iters=30, keep="last", **kw)
+        ts = torch.stack([Tracker(model, beta, tc, cfg.render, seed=s).track(mfs[4], T_gt).T_world_cam[:3, 3]
+                          for s in range(6)])
+        return float((ts - ts.mean(0)).norm(dim=1).pow(2).mean().sqrt()), float((ts.mean(0) - T_gt[:3, 3]).norm())
+
+    const, decayed = spread(), spread(lr_decay=0.05)
+    print("spread, mean error: constant", const, "decay 0.05", decayed)
+    assert decayed[0] < 0.7 * const[0]
+    assert decayed[1] < 0.01
