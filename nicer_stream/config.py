@@ -93,8 +93,8 @@ class RenderConfig:
     keep_band_m: float = 0.0
     """With `min_transmittance`: samples within this distance behind a surface (estimated SDF
     above -keep_band_m) go through the network however little light reaches them, so the
-    Eikonal term keeps its points there. 0: none kept for that. With 1e-4 and 0.1 m mapping took
-    0.95x as long on Replica but lost 1 dB of PSNR over five seeds, one map badly
+    Eikonal term keeps its points there. 0: none kept for that. With 1e-4 and 0.1 m Replica runs were
+    ~5% shorter (separate runs) but lost 1 dB of PSNR over five seeds, one map badly
     (docs/performance.md, stop 41): an option, not a preset's."""
     near_m: float = 0.05
     """Closest sample distance from the camera, metres."""
@@ -268,7 +268,7 @@ class TrackingConfig:
     """'adam': the learning rate falls geometrically from `lr` to `lr * lr_decay` at the last step
     (1: constant). Replica, `oracle:clean`, five seeds (docs/performance.md, stop 41): with
     `iters = 40` and 0.1, ATE 0.21 -> 0.19 cm, trajectory-aligned completion ratio 58 -> 73%,
-    run ~5% longer; 0.3 at 20 iterations changed nothing; on the demo room (`stereo`, three
+    runs ~5% longer (separate runs); 0.3 at 20 iterations changed nothing; on the demo room (`stereo`, three
     seeds) ATE 0.63 -> 0.82 cm. Not a preset's."""
     n_probe: int | None = None
     """Probe samples per ray while tracking (None: as in mapping)."""

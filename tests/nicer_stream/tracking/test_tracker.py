@@ -94,7 +94,7 @@ def test_decayed_lr_runs_geometrically_from_lr_to_lr_times_decay():
     assert decayed_lr(3e-3, 1.0, 7, 20) == 3e-3 and decayed_lr(3e-3, 0.1, 0, 1) == 3e-3
 
 
-def test_a_decaying_rate_scatters_less_over_pixel_draws(fitted, pose_error):
+def test_a_decaying_rate_scatters_less_over_pixel_draws(fitted):
     """Near the optimum Adam's steps stay ~lr long, each on fresh pixels: the final pose scatters
     with the pixel draw (the tracker's seed). Ending on a small rate scatters less, and the poses
     still end near the GT pose they start at."""
