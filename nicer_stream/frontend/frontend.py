@@ -30,6 +30,18 @@ class FrontendPose:
     median_depth: float
 
 
+@dataclass(frozen=True)
+class TwoViewTracks:
+    """The frontend's start without depth priors: T_world_cam (4, 4) float64 of the second view
+    (the first at the identity), its triangulated inliers (M, 3) world, the essential matrix's
+    inlier count and their median parallax in degrees."""
+
+    T_world_second: np.ndarray
+    points: np.ndarray
+    inliers: int
+    parallax_deg: float
+
+
 class ClassicalFrontend:
     """Call `observe` on every frame in input order, `estimate` for a frame's pose, and
     `set_pose` once the SLAM has decided a frame's pose (`trusted=False`: not triangulated from).
@@ -103,24 +115,25 @@ class ClassicalFrontend:
         self.own[index] = res[0]
         return FrontendPose(res[0], res[1], int(has.sum()), float(np.median(z)))
 
-    def two_view(self, first: int, second: int, median_m: float) -> tuple[np.ndarray, np.ndarray, int] | None:
-        """A start without depth priors: T_world_cam (4, 4) of `second` with `first` at the
-        identity, from the essential matrix of their common tracks, scaled so the median depth
-        of the triangulated inliers in `first` is `median_m`; with those points (M, 3) and the
-        inlier count. None with fewer than 2 * `min_inliers` inliers or median parallax below
-        `init_parallax_deg` (half that once fewer than 4 * `min_inliers` tracks are common)."""
+    def two_view(self, first: int, second: int, median_m: float, fallback: bool = False) -> TwoViewTracks | None:
+        """A start without depth priors: `second`'s pose with `first` at the identity, from the
+        essential matrix of their common tracks, scaled so the median depth of the triangulated
+        inliers in `first` is `median_m`. None with fewer than 2 * `min_inliers` inliers or median
+        parallax below `init_parallax_deg` (half that once fewer than 4 * `min_inliers` tracks are
+        common); with `fallback`, below `min_inliers` inliers or `fallback_parallax_deg`."""
         if first not in self.obs or second not in self.obs:
             return None
+        need = self.cfg.min_inliers * (1 if fallback else 2)
         (ids0, uv0), (ids1, uv1) = self.obs[first], self.obs[second]
         common, i0, i1 = np.intersect1d(ids0, ids1, return_indices=True)
-        if len(common) < 2 * self.cfg.min_inliers:
+        if len(common) < need:
             return None
-        rel = essential_pose(uv0[i0], uv1[i1], self.intr, self.cfg.reproj_px / 2, 2 * self.cfg.min_inliers)
+        rel = essential_pose(uv0[i0], uv1[i1], self.intr, self.cfg.reproj_px / 2, need)
         if rel is None:
             return None
         T1, n_in, inl = rel
         X, ok = triangulate(np.eye(4), T1, uv0[i0][inl], uv1[i1][inl], self.intr, self.cfg.reproj_px, 0.0)
-        if ok.sum() < 2 * self.cfg.min_inliers:
+        if ok.sum() < need:
             return None
         X = X[ok]
         rays0, rays1 = X / np.linalg.norm(X, axis=1, keepdims=True), X - T1[:3, 3]
@@ -129,11 +142,12 @@ class ClassicalFrontend:
         # Tracks fading (forward motion past near surfaces) before the parallax grows: half the
         # parallax now beats waiting for a pair with too few common tracks to start from.
         fading = len(common) < 4 * self.cfg.min_inliers
-        if parallax < self.cfg.init_parallax_deg * (0.5 if fading else 1.0):
+        floor = self.cfg.fallback_parallax_deg if fallback else self.cfg.init_parallax_deg * (0.5 if fading else 1.0)
+        if parallax < floor or (fallback and floor <= 0):
             return None
         s = median_m / float(np.median(X[:, 2]))
         T1[:3, 3] *= s
-        return T1, X * s, int(n_in)
+        return TwoViewTracks(T1, X * s, int(n_in), float(parallax))
 
     # -- poses the SLAM decided --------------------------------------------------------
     def set_pose(self, index: int, T_world_cam: np.ndarray, trusted: bool = True) -> None:

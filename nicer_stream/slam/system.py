@@ -19,7 +19,7 @@ import numpy as np
 import torch
 
 from nicer_stream.config import SlamConfig
-from nicer_stream.frontend.frontend import ClassicalFrontend, FrontendPose
+from nicer_stream.frontend.frontend import ClassicalFrontend, FrontendPose, TwoViewTracks
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.depth_shift import shift_from_normals
 from nicer_stream.mapping.mapper import Mapper
@@ -349,13 +349,21 @@ class SlamSystem:
         last = next((m for m, _ in reversed(held[1:]) if m is not None), None)
         view, points = None, None
         fview = self._fview[1] if self._fview is not None and last is not None and self._fview[0] == last.index else None
+        fallback = first.depth_prior is None and fview is None and last is not None and self.frontend is not None
+        if fallback:  # no held frame met the start's parallax: the widest pair that is still usable
+            last, fview = self._fallback_view(first, [m for m, _ in held[1:] if m is not None])
         if first.depth_prior is None and fview is not None:
-            T1, points, n_in = fview
-            view = TwoView(T1, None, None, n_in)
-            self.init_note = (f"two-view start with frame {last.index} from the frontend's tracks ({n_in} "
-                              f"essential-matrix inliers), first frame's median tracked depth taken as "
-                              f"{self.cfg.loss.first_depth_median_m} m")
-        elif last is not None:
+            points = fview.points
+            view = TwoView(fview.T_world_second, None, None, fview.inliers)
+            self.init_note = (f"two-view start with frame {last.index} from the frontend's tracks ({fview.inliers} "
+                              f"essential-matrix inliers, {fview.parallax_deg:.1f} degrees of parallax"
+                              f"{', below the usual threshold' if fallback else ''}), first frame's median tracked "
+                              f"depth taken as {self.cfg.loss.first_depth_median_m} m")
+            if fallback:
+                log.warning("two-view start: no held frame reached %.1f degrees of parallax with frame %d; starting "
+                            "from frame %d at %.1f degrees", self.cfg.frontend.init_parallax_deg, first.index,
+                            last.index, fview.parallax_deg)
+        elif last is not None and first.depth_prior is not None:
             median_m = self.cfg.loss.first_depth_median_m
             reference = first_scale_shift(first, median_m) if first.normal_prior is not None else None
             view = two_view_init(first, last, median_m, reference=reference)
@@ -374,6 +382,18 @@ class SlamSystem:
                 continue  # stopping: no tracking; the frames with a pose are kept
             events += self._advance(m, f, known)
         return events
+
+    def _fallback_view(self, first: MapFrame, held: list[MapFrame]) -> tuple[MapFrame | None, TwoViewTracks | None]:
+        """The held frame whose tracks with `first` pass the frontend's fallback start with the
+        widest median parallax (the later one on a tie), and that start; (last held, None) when
+        none does."""
+        median_m = self.cfg.loss.first_depth_median_m
+        with self._frontend_timer():
+            views = [(m, self.frontend.two_view(first.index, m.index, median_m, fallback=True)) for m in held]
+        views = [(m, v) for m, v in views if v is not None]
+        if not views:
+            return (held[-1] if held else None), None
+        return max(views, key=lambda mv: (mv[1].parallax_deg, mv[0].index))
 
     def _track(self, mf: MapFrame) -> FrameTracked:
         history = [self.poses[i] for i in self.order[-2:]]

@@ -90,3 +90,29 @@ def test_bundle_adjustment_frames_keep_a_baseline(orbit_frames, every):
         assert joined.max() == 1, fe.posed
     else:
         assert joined.min() >= 2 and len(fe.posed) <= len(src) // every, fe.posed
+
+
+def test_the_fallback_start_takes_a_pair_below_the_usual_parallax():
+    """Room frames 0 and 2 (4 cm apart, ~1.2 degrees of parallax): below the start's 2 degrees, so
+    the usual start finds nothing; the fallback (`fallback_parallax_deg`) gives the second view
+    in GT's direction of travel (1.1 degrees off here), reports its parallax and keeps the scale
+    convention; a fallback threshold of 0 turns it off."""
+    from dataclasses import replace
+
+    src = list(open_source("synthetic:room?frames=120", SourceOptions(max_frames=3)))
+    cfg = FrontendConfig()
+    fe = ClassicalFrontend(cfg)
+    off = ClassicalFrontend(replace(cfg, fallback_parallax_deg=0.0))
+    for f in src:
+        fe.observe(f.index, f.rgb, f.intrinsics)
+        off.observe(f.index, f.rgb, f.intrinsics)
+    assert fe.two_view(0, 2, 2.0) is None
+    got = fe.two_view(0, 2, 2.0, fallback=True)
+    assert got is not None and got.inliers >= cfg.min_inliers
+    assert cfg.fallback_parallax_deg <= got.parallax_deg < cfg.init_parallax_deg
+    rel = np.linalg.inv(src[0].gt_pose) @ src[2].gt_pose
+    t = got.T_world_second[:3, 3]
+    cos = t @ rel[:3, 3] / np.linalg.norm(t) / np.linalg.norm(rel[:3, 3])
+    assert np.degrees(np.arccos(np.clip(cos, -1, 1))) < 5.0
+    assert abs(np.median(got.points[:, 2]) - 2.0) < 1e-6  # the first view's median depth: the map's unit
+    assert off.two_view(0, 2, 2.0, fallback=True) is None

@@ -279,3 +279,28 @@ def test_the_last_frames_refinement_before_the_closing_call_passes_the_frontend_
             again = [e for e in slam._refine_unrefined_last() if isinstance(e, FrameTracked)]
         kept.append((torch.equal(slam.poses[last], before), len(again)))
     assert kept == [(True, 0), (False, 1)], kept
+
+
+@pytest.mark.parametrize("fallback_deg", [0.5, 0.0])
+def test_a_start_without_depth_that_never_reaches_the_parallax_takes_the_widest_held_pair(cfg, fallback_deg):
+    """No depth prior and a start threshold no pair meets (forward motion on KITTI: the tracks
+    leave before their parallax grows): the start takes the held frame with the widest parallax
+    the fallback accepts, posed in GT's direction of travel from frame 0, rather than the first
+    frame alone; with the fallback off it starts from the first frame alone, as before."""
+    c = replace(cfg, mapping=replace(cfg.mapping, init="two_view", init_frames=4),
+                frontend=replace(cfg.frontend, init_parallax_deg=90.0, fallback_parallax_deg=fallback_deg))
+    src = list(open_source("synthetic:room?frames=60", SourceOptions(max_frames=6, max_side=160)))
+    slam = SlamSystem(c)
+    for f in src:
+        slam.step(f.without_ground_truth())
+    assert slam.model is not None and all(f.index in slam.poses for f in src)
+    if fallback_deg == 0:
+        assert slam.init_note.startswith("two-view start failed")
+        return
+    assert "below the usual threshold" in slam.init_note, slam.init_note
+    k = int(slam.init_note.split("with frame ")[1].split()[0])
+    assert 1 <= k <= 4
+    t = slam.poses[k][:3, 3].double().numpy()
+    rel = np.linalg.inv(src[0].gt_pose) @ src[k].gt_pose
+    cos = t @ rel[:3, 3] / np.linalg.norm(t) / np.linalg.norm(rel[:3, 3])
+    assert np.degrees(np.arccos(np.clip(cos, -1, 1))) < 10.0
