@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The measurements named in the issues (long: run one at a time on a 2-core CPU).
-# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|seeds|run-none|run-synth|run10|run10-paper|flow|ab|speedup|iters|frontend|street|jump|async|memory|batch] [OUTROOT]
+# Usage: scripts/benchmarks.sh [map|map-none|map-paper|map-synth|run|run-seeds|seeds|run-none|run-synth|run10|run10-paper|flow|ab|speedup|iters|frontend|street|kitti|jump|async|memory|batch] [OUTROOT]
 # speedup: the Replica `run` of commit BASE (default c64946b; a git worktree in OUTROOT/base_worktree)
 #   and of this tree (uncommitted edits included) back to back, then scripts/speedup_table.py
 #   (~15 min). EXTRA="..." appends arguments to both runs (e.g. EXTRA="--max-frames 3"), NEW_EXTRA="..."
@@ -37,15 +37,15 @@ sys.exit(f"imported from outside {sys.argv[1]}: {bad}" if bad else 0)' "$tree")
      --source "replica:$root/../shared/data/replica_room0_20f" --priors "$3" --preset fast --out "$dir" ${EXTRA:-} ${4:-})
   echo "wall $(cut -d' ' -f1 "$dir/time.txt") s, peak RSS $(cut -d' ' -f2 "$dir/time.txt") KB"
 }
-# seed_runs NAME SOURCE PRIORS [CONFIG]: `nicer-stream run` (`fast`) on seeds 0 1 2 into
-# OUT/NAME_seedN, each with CONFIG's overrides (a TOML file without a `seed` key) when given.
+# seed_runs NAME SOURCE PRIORS [CONFIG [ARGS...]]: `nicer-stream run` (`fast`) on seeds 0 1 2 into
+# OUT/NAME_seedN, each with CONFIG's overrides (a TOML file without a `seed` key) when given, and ARGS.
 seed_runs() {
   mkdir -p $OUT
   for s in 0 1 2; do
     local cfg=$OUT/$1_seed$s.toml
     echo "seed = $s" > $cfg
     if [ -n "${4:-}" ]; then grep -v '^seed' "$4" >> $cfg || true; fi
-    t $NS run --source "$2" --priors "$3" --preset fast --config $cfg --out $OUT/$1_seed$s
+    t $NS run --source "$2" --priors "$3" --preset fast --config $cfg --out $OUT/$1_seed$s "${@:5}"
   done
 }
 case "${1:-all}" in
@@ -77,6 +77,9 @@ case "${1:-all}" in
   street)    # issue 17: the synthetic street, 100 frames, without priors, frontend on (PRIORS= to change)
              mkdir -p $OUT && printf '[tracking]\nfrontend = "classical"\n' > $OUT/frontend.toml
              t $NS run --source "synthetic:street?frames=100" --priors ${PRIORS:-none} --preset fast --config $OUT/frontend.toml --out $OUT/run_street_${PRIORS:-none} ;;
+  kitti)     # the real KITTI drive (51 grey frames, 51.8 m) with the default priors (stereo here) at
+             # 640 px (320 keeps 97 rows), seeds 0 1 2 (CONFIG= a toml to add; docs/priors.md, stop 42)
+             seed_runs kitti_640 "tum:../shared/data/kitti_gray_seq2_51f" auto "${CONFIG:-}" --max-side 640 ;;
   jump)      # issue 17: 5 frames removed from the middle of the Replica clip (CONFIG= a toml to add;
              # SOURCE=synthetic:room?frames=40 DROP=18:23 for the demo room)
              t $NS run --source "${SOURCE:-$REPLICA}" --priors oracle --preset fast --drop "${DROP:-8:13}" ${CONFIG:+--config $CONFIG} --out $OUT/run_jump ;;
