@@ -314,13 +314,13 @@ class FrontendConfig:
     init_parallax_deg: float = 2.0
     """Without a depth prior, the SLAM starts once the first frame and the latest share tracks
     whose median parallax is this large (the essential matrix gives the second pose)."""
-    fallback_parallax_deg: float = 0.5
-    """... and when no frame held for the start (`mapping.init_frames`) met that, the start takes
-    the held frame with the widest median parallax above this one among those with `min_inliers`
-    essential-matrix inliers (0: none; the first frame then starts alone, without any depth).
-    Forward motion loses its tracks before their parallax grows: on KITTI at 320 x 97 px the
-    first frame shares 116 down to 18 tracks with frames 1-10, 46 down to 15 of them inliers, at
-    0.6-1.3 degrees (frames 1-9)."""
+    fallback_parallax_deg: float = 0.0
+    """... and when no frame held for the start (`mapping.init_frames`) met that, take the held frame
+    with the widest median parallax above this one among those with `min_inliers` essential-matrix
+    inliers (0: none; the first frame then starts alone, without any depth). Forward motion loses
+    its tracks before their parallax grows (KITTI at 320 x 97 px: 46 down to 15 inliers with frames
+    1-10 at 0.6-1.3 degrees). Not a default: on the KITTI drive at 640 px, 0.5 gave ATE 0.68 / 0.71 /
+    1.08 m on seeds 0-2 against 1.01 / 0.64 / 0.44 m without (docs/priors.md)."""
     ba_frames: int = 15
     """Frames in the local bundle adjustment (0: none): the latest trusted frames that each moved
     `ba_baseline_frac` from the one before; it runs whenever one joins."""

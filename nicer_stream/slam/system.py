@@ -349,7 +349,8 @@ class SlamSystem:
         last = next((m for m, _ in reversed(held[1:]) if m is not None), None)
         view, points = None, None
         fview = self._fview[1] if self._fview is not None and last is not None and self._fview[0] == last.index else None
-        fallback = first.depth_prior is None and fview is None and last is not None and self.frontend is not None
+        fallback = (first.depth_prior is None and fview is None and last is not None and self.frontend is not None
+                    and self.cfg.frontend.fallback_parallax_deg > 0)
         if fallback:  # no held frame met the start's parallax: the widest pair that is still usable
             last, fview = self._fallback_view(first, [m for m, _ in held[1:] if m is not None])
         if first.depth_prior is None and fview is not None:

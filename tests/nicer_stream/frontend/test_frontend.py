@@ -94,15 +94,15 @@ def test_bundle_adjustment_frames_keep_a_baseline(orbit_frames, every):
 
 def test_the_fallback_start_takes_a_pair_below_the_usual_parallax():
     """Room frames 0 and 2 (4 cm apart, ~1.2 degrees of parallax): below the start's 2 degrees, so
-    the usual start finds nothing; the fallback (`fallback_parallax_deg`) gives the second view
-    in GT's direction of travel (1.1 degrees off here), reports its parallax and keeps the scale
-    convention; a fallback threshold of 0 turns it off."""
+    the usual start finds nothing; the fallback (`fallback_parallax_deg = 0.5`) gives the second
+    view in GT's direction of travel (1.1 degrees off here), reports its parallax and keeps the
+    scale convention; a fallback threshold of 0 (the default) turns it off."""
     from dataclasses import replace
 
     src = list(open_source("synthetic:room?frames=120", SourceOptions(max_frames=3)))
-    cfg = FrontendConfig()
+    cfg = replace(FrontendConfig(), fallback_parallax_deg=0.5)
     fe = ClassicalFrontend(cfg)
-    off = ClassicalFrontend(replace(cfg, fallback_parallax_deg=0.0))
+    off = ClassicalFrontend(FrontendConfig())
     for f in src:
         fe.observe(f.index, f.rgb, f.intrinsics)
         off.observe(f.index, f.rgb, f.intrinsics)

@@ -286,7 +286,7 @@ def test_a_start_without_depth_that_never_reaches_the_parallax_takes_the_widest_
     """No depth prior and a start threshold no pair meets (forward motion on KITTI: the tracks
     leave before their parallax grows): the start takes the held frame with the widest parallax
     the fallback accepts, posed in GT's direction of travel from frame 0, rather than the first
-    frame alone; with the fallback off it starts from the first frame alone, as before."""
+    frame alone; with the fallback off (the default) it starts from the first frame alone."""
     c = replace(cfg, mapping=replace(cfg.mapping, init="two_view", init_frames=4),
                 frontend=replace(cfg.frontend, init_parallax_deg=90.0, fallback_parallax_deg=fallback_deg))
     src = list(open_source("synthetic:room?frames=60", SourceOptions(max_frames=6, max_side=160)))
