@@ -121,7 +121,7 @@ class ClassicalFrontend:
         inliers in `first` is `median_m`. None with fewer than 2 * `min_inliers` inliers or median
         parallax below `init_parallax_deg` (half that once fewer than 4 * `min_inliers` tracks are
         common); with `fallback`, below `min_inliers` inliers or `fallback_parallax_deg`."""
-        if first not in self.obs or second not in self.obs:
+        if first not in self.obs or second not in self.obs or (fallback and self.cfg.fallback_parallax_deg <= 0):
             return None
         need = self.cfg.min_inliers * (1 if fallback else 2)
         (ids0, uv0), (ids1, uv1) = self.obs[first], self.obs[second]
@@ -143,7 +143,7 @@ class ClassicalFrontend:
         # parallax now beats waiting for a pair with too few common tracks to start from.
         fading = len(common) < 4 * self.cfg.min_inliers
         floor = self.cfg.fallback_parallax_deg if fallback else self.cfg.init_parallax_deg * (0.5 if fading else 1.0)
-        if parallax < floor or (fallback and floor <= 0):
+        if parallax < floor:
             return None
         s = median_m / float(np.median(X[:, 2]))
         T1[:3, 3] *= s

@@ -352,7 +352,9 @@ class SlamSystem:
         fallback = (first.depth_prior is None and fview is None and last is not None and self.frontend is not None
                     and self.cfg.frontend.fallback_parallax_deg > 0)
         if fallback:  # no held frame met the start's parallax: the widest pair that is still usable
-            last, fview = self._fallback_view(first, [m for m, _ in held[1:] if m is not None])
+            best = self._fallback_view(first, [m for m, _ in held[1:] if m is not None])
+            if best is not None:
+                last, fview = best
         if first.depth_prior is None and fview is not None:
             points = fview.points
             view = TwoView(fview.T_world_second, None, None, fview.inliers)
@@ -384,17 +386,14 @@ class SlamSystem:
             events += self._advance(m, f, known)
         return events
 
-    def _fallback_view(self, first: MapFrame, held: list[MapFrame]) -> tuple[MapFrame | None, TwoViewTracks | None]:
+    def _fallback_view(self, first: MapFrame, held: list[MapFrame]) -> tuple[MapFrame, TwoViewTracks] | None:
         """The held frame whose tracks with `first` pass the frontend's fallback start with the
-        widest median parallax (the later one on a tie), and that start; (last held, None) when
-        none does."""
+        widest median parallax (the later one on a tie), and that start; None when none does."""
         median_m = self.cfg.loss.first_depth_median_m
         with self._frontend_timer():
             views = [(m, self.frontend.two_view(first.index, m.index, median_m, fallback=True)) for m in held]
         views = [(m, v) for m, v in views if v is not None]
-        if not views:
-            return (held[-1] if held else None), None
-        return max(views, key=lambda mv: (mv[1].parallax_deg, mv[0].index))
+        return max(views, key=lambda mv: (mv[1].parallax_deg, mv[0].index)) if views else None
 
     def _track(self, mf: MapFrame) -> FrameTracked:
         history = [self.poses[i] for i in self.order[-2:]]
