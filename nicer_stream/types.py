@@ -51,6 +51,18 @@ class Intrinsics:
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
 
+@dataclass(frozen=True)
+class DetailImage:
+    """A frame's image at a higher resolution than `Frame.rgb`, for the geometric frontend: feature
+    positions to a fraction of the map image's pixel make its poses several times more accurate
+    (docs/priors.md, "The frontend at the source's resolution").
+
+    grey: (h, w) uint8 luminance; intrinsics: of this image (the same camera as `Frame.rgb`'s)."""
+
+    grey: np.ndarray
+    intrinsics: Intrinsics
+
+
 @dataclass
 class Frame:
     """One input image and what the source knows about it.
@@ -70,6 +82,9 @@ class Frame:
     timestamp_ns: int | None = None
     """Exact sensor time in integer nanoseconds when the source has one (MCAP stamps);
     `timestamp` (float seconds) cannot hold epoch times to the nanosecond."""
+    detail: DetailImage | None = None
+    """The same image larger than `rgb` (`SourceOptions.detail_side`), or None: the frontend then
+    works on `rgb`."""
 
     @property
     def height(self) -> int:

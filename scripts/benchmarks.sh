@@ -77,9 +77,10 @@ case "${1:-all}" in
   street)    # issue 17: the synthetic street, 100 frames, without priors, frontend on (PRIORS= to change)
              mkdir -p $OUT && printf '[tracking]\nfrontend = "classical"\n' > $OUT/frontend.toml
              t $NS run --source "synthetic:street?frames=100" --priors ${PRIORS:-none} --preset fast --config $OUT/frontend.toml --out $OUT/run_street_${PRIORS:-none} ;;
-  kitti)     # the real KITTI drive (51 grey frames, 51.8 m) with the default priors (stereo here) at
-             # 640 px (320 keeps 97 rows), seeds 0 1 2 (CONFIG= a toml to add; docs/priors.md, stop 42)
-             seed_runs kitti_640 "tum:../shared/data/kitti_gray_seq2_51f" auto "${CONFIG:-}" --max-side 640 ;;
+  kitti)     # the real KITTI drive (51 grey frames, 51.8 m) with the default priors (stereo here), the
+             # map at `fast`'s 320 px and the frontend on the 1241 px image, seeds 0 1 2 (CONFIG= a toml
+             # to add; SIDE=640 for a 640 px map; docs/priors.md, stops 42-43)
+             seed_runs kitti_${SIDE:-320} "tum:../shared/data/kitti_gray_seq2_51f" auto "${CONFIG:-}" --max-side ${SIDE:-320} ;;
   jump)      # issue 17: 5 frames removed from the middle of the Replica clip (CONFIG= a toml to add;
              # SOURCE=synthetic:room?frames=40 DROP=18:23 for the demo room)
              t $NS run --source "${SOURCE:-$REPLICA}" --priors oracle --preset fast --drop "${DROP:-8:13}" ${CONFIG:+--config $CONFIG} --out $OUT/run_jump ;;

@@ -8,7 +8,8 @@ import cv2
 import numpy as np
 
 from nicer_stream.errors import SourceError
-from nicer_stream.types import Frame, Intrinsics
+from nicer_stream.frontend.klt import to_grey_u8
+from nicer_stream.types import DetailImage, Frame, Intrinsics
 
 
 @dataclass(frozen=True)
@@ -31,6 +32,9 @@ class SourceOptions:
     """Resize by this factor (intrinsics follow); exclusive with max_side."""
     intrinsics: tuple[float, float, float, float] | None = None
     """Override `fx, fy, cx, cy` (at the original image size)."""
+    detail_side: int | None = None
+    """Also keep a grey copy of each image with its longer side up to this many pixels (never above
+    the original) where that is larger than the resized image: `Frame.detail`, the frontend's input."""
 
     def __post_init__(self) -> None:
         if self.stride < 1 or self.start < 0:
@@ -42,6 +46,8 @@ class SourceOptions:
             raise SourceError(f"--drop {a}:{b} is empty or negative: give A:B with 0 <= A < B (drops input frames A..B-1)")
         if self.max_side is not None and self.scale is not None:
             raise SourceError("give either --max-side or --scale, not both")
+        if self.detail_side is not None and self.detail_side < 1:
+            raise SourceError(f"detail_side must be a positive number of pixels, got {self.detail_side}")
 
     def keeps(self, raw_index: int) -> bool:
         """Whether input frame number `raw_index` (0-based) passes start/stride/drop."""
@@ -65,9 +71,22 @@ class SourceOptions:
         return max(1, round(width * f)), max(1, round(height * f))
 
 
+def detail_image(frame: Frame, side: int, smaller: tuple[int, int]) -> DetailImage | None:
+    """A grey copy of `frame`'s image with its longer side up to `side` pixels (never above the
+    original), or None when that is no larger than `smaller` (width, height)."""
+    w, h = SourceOptions(max_side=side).target_size(frame.width, frame.height)
+    if w <= smaller[0] and h <= smaller[1]:
+        return None
+    rgb = frame.rgb if (w, h) == (frame.width, frame.height) else cv2.resize(frame.rgb, (w, h), interpolation=cv2.INTER_AREA)
+    return DetailImage(to_grey_u8(rgb), frame.intrinsics.resized(w, h))
+
+
 def resize_frame(frame: Frame, opts: SourceOptions) -> Frame:
-    """Apply the options' resize to RGB, GT depth and intrinsics."""
+    """Apply the options' resize to RGB, GT depth and intrinsics; keep a `detail` image when
+    `opts.detail_side` asks for one larger than the result."""
     w, h = opts.target_size(frame.width, frame.height)
+    if opts.detail_side is not None:
+        frame = replace(frame, detail=detail_image(frame, opts.detail_side, (w, h)))
     if (w, h) == (frame.width, frame.height):
         return frame
     rgb = cv2.resize(frame.rgb, (w, h), interpolation=cv2.INTER_AREA)

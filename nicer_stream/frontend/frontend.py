@@ -67,7 +67,9 @@ class ClassicalFrontend:
 
     # -- every frame ---------------------------------------------------------------
     def observe(self, index: int, rgb: np.ndarray, intr: Intrinsics) -> None:
-        """Follow the features into this frame (`cfg.features`: SIFT matches or KLT tracks)."""
+        """Follow the features into this frame (`cfg.features`: SIFT matches or KLT tracks). `rgb`:
+        (H, W, 3) float RGB in [0, 1] or (H, W) uint8 grey (`Frame.detail`); `intr` its intrinsics
+        (every frame at the same size)."""
         self.intr = intr
         self.obs[index] = self.tracks.step(to_grey_u8(rgb), self._predicted(index), self.cfg.guided_px,
                                              2 * self.cfg.min_inliers)

@@ -144,7 +144,10 @@ class SlamSystem:
             self.stereo.observe(frame.index, frame.rgb)
         if self.frontend is not None and mf is not None:
             with self._frontend_timer():
-                self.frontend.observe(frame.index, frame.rgb, frame.intrinsics)
+                if frame.detail is not None:  # the source's larger image (`frontend.max_side`)
+                    self.frontend.observe(frame.index, frame.detail.grey, frame.detail.intrinsics)
+                else:
+                    self.frontend.observe(frame.index, frame.rgb, frame.intrinsics)
         if priors is not None and mf is not None:  # flows from stored (and held) frames to this one
             for kf in list(self.frames.values()) + [p for p in self.pending if p is not None]:
                 kf.add_flows(priors)

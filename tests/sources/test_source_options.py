@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import re
 
+import cv2
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -11,7 +12,8 @@ from nicer_stream.cli.common import parse_drop
 from nicer_stream.cli.main import app
 from nicer_stream.errors import SourceError, UserError
 from sources import SCHEMES, open_source, parse_uri
-from sources.base import SourceOptions
+from nicer_stream.types import Frame, Intrinsics
+from sources.base import SourceOptions, resize_frame
 from sources.synthetic import make_scene
 
 
@@ -82,11 +84,36 @@ def test_target_size():
     assert SourceOptions().target_size(17, 9) == (17, 9)
 
 
+def test_the_detail_image_is_the_larger_grey_copy_with_its_own_intrinsics():
+    """max_side 50 with detail_side 120 on a 200 x 100 frame: the map's image 50 x 25, the grey copy
+    120 x 60 (the area-resized RGB's luminance, uint8) with the camera's intrinsics at that size;
+    none when it would be no larger than the map's image; the original when the side exceeds it."""
+    rng = np.random.default_rng(0)
+    intr = Intrinsics(180.0, 170.0, 99.5, 49.5, 200, 100)
+    frame = Frame(0, 0.0, rng.random((100, 200, 3), dtype=np.float32), intr)
+    out = resize_frame(frame, SourceOptions(max_side=50, detail_side=120))
+    assert out.rgb.shape == (25, 50, 3) and out.intrinsics == intr.resized(50, 25)
+    d = out.detail
+    assert d.grey.shape == (60, 120) and d.grey.dtype == np.uint8 and d.intrinsics == intr.resized(120, 60)
+    ref = cv2.cvtColor(cv2.resize(frame.rgb, (120, 60), interpolation=cv2.INTER_AREA), cv2.COLOR_RGB2GRAY) * 255
+    assert np.abs(d.grey.astype(np.float32) - ref).max() <= 1.0
+    assert resize_frame(frame, SourceOptions(max_side=50, detail_side=40)).detail is None
+    assert resize_frame(frame, SourceOptions(detail_side=400)).detail is None  # no resize: rgb is the largest
+    full = resize_frame(frame, SourceOptions(max_side=50, detail_side=400)).detail
+    assert full.grey.shape == (100, 200) and full.intrinsics == intr
+    assert resize_frame(frame, SourceOptions(max_side=50)).detail is None
+
+
 @pytest.mark.parametrize("kwargs", [dict(stride=0), dict(start=-1), dict(max_frames=0), dict(max_side=10, scale=0.5)])
 def test_invalid_options_raise_one_line(kwargs):
     with pytest.raises(SourceError) as e:
         SourceOptions(**kwargs)
     assert "\n" not in str(e.value) and "--" in str(e.value)
+
+
+def test_a_detail_side_below_one_pixel_is_refused_in_one_line():
+    with pytest.raises(SourceError, match="detail_side must be a positive number of pixels, got 0"):
+        SourceOptions(detail_side=0)
 
 
 def test_parse_uri():

@@ -304,3 +304,14 @@ def test_a_start_without_depth_that_never_reaches_the_parallax_takes_the_widest_
     rel = np.linalg.inv(src[0].gt_pose) @ src[k].gt_pose
     cos = t @ rel[:3, 3] / np.linalg.norm(t) / np.linalg.norm(rel[:3, 3])
     assert np.degrees(np.arccos(np.clip(cos, -1, 1))) < 10.0
+
+
+def test_the_frontend_observes_the_frames_detail_image(cfg):
+    """Frames at 160 px carrying the source's 320 px grey copy: the frontend tracks in the copy
+    (its intrinsics are the copy's), the map's frames stay at 160 px."""
+    slam = SlamSystem(cfg)
+    opts = SourceOptions(max_frames=2, max_side=160, detail_side=320)
+    for f in open_source("synthetic:room?frames=60", opts):
+        slam.step(f.without_ground_truth())
+    assert slam.frontend.intr.width == 320 and slam.frontend.intr == f.detail.intrinsics
+    assert all(m.rgb.shape[1] == 160 for m in slam.frames.values())
