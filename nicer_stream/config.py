@@ -327,6 +327,11 @@ class FrontendConfig:
     its tracks before their parallax grows (KITTI at 320 x 97 px: 46 down to 15 inliers with frames
     1-10 at 0.6-1.3 degrees). Not a default: on the KITTI drive at 640 px, 0.5 gave ATE 0.68 / 0.71 /
     1.08 m on seeds 0-2 against 1.01 / 0.64 / 0.44 m without (docs/priors.md)."""
+    start_ba: bool = True
+    """Refine the start's two views (essential matrix, then triangulation) by a bundle adjustment
+    with the first view and the baseline's length held, before any other frame is posed against
+    them (`ClassicalFrontend._refine_pair`). Replica frames 0/10 at 1200 px: the second view 0.2 ->
+    0.02 degrees from GT, its direction of travel 4.5 -> 0.4 degrees (docs/priors.md)."""
     ba_frames: int = 15
     """Frames in the local bundle adjustment (0: none): the latest trusted frames that each moved
     `ba_baseline_frac` from the one before; it runs whenever one joins."""
@@ -334,7 +339,8 @@ class FrontendConfig:
     """... of the median depth of the landmarks they see (every frame on the street at 1 m a
     frame, every ~4th on the Replica clip)."""
     ba_fixed: int = 3
-    """Its oldest this many frames stay fixed (gauge and scale)."""
+    """Its oldest this many frames stay fixed (gauge and scale); with 1, the adjusted window is
+    rescaled about that frame so its two oldest frames keep their distance (`hold_scale`)."""
     ba_iters: int = 10
     """Its Levenberg-Marquardt iterations at most."""
     max_disagreement_depth_frac: float = 0.005
@@ -353,6 +359,10 @@ class StereoConfig:
 
     window: int = 9
     """ZNCC window side, pixels (odd)."""
+    max_side: int | None = 640
+    """Sweep the source's larger image (`Frame.detail`, the frontend's) resized to this longer
+    side where there is one, then average the depth down to the map's pixels (None: the map's
+    images). Replica clip, GT poses: L1 12.3 cm at 320 px -> 8.2 cm at 640 (5x the sweep's cost)."""
     min_planes: int = 48
     """At least this many depth planes."""
     max_planes: int = 160

@@ -42,6 +42,24 @@ class TwoViewTracks:
     parallax_deg: float
 
 
+def hold_scale(before: list[np.ndarray], after: list[np.ndarray], points: np.ndarray) -> tuple[list[np.ndarray], np.ndarray]:
+    """The bundle adjustment's result with its scale gauge fixed: poses (T_world_cam (4, 4)) and
+    world points (P, 3) scaled about the first camera's centre (held by the adjustment) so the
+    first two cameras are as far apart as `before`. Reprojections do not change: scaling the whole
+    scene about a point is invisible to every camera."""
+    c0 = after[0][:3, 3]
+    d_after = float(np.linalg.norm(after[1][:3, 3] - c0))
+    if d_after <= 0:
+        return after, points
+    s = float(np.linalg.norm(before[1][:3, 3] - before[0][:3, 3])) / d_after
+    out = []
+    for T in after:
+        T = T.copy()
+        T[:3, 3] = c0 + s * (T[:3, 3] - c0)
+        out.append(T)
+    return out, c0 + s * (points - c0)
+
+
 class ClassicalFrontend:
     """Call `observe` on every frame in input order, `estimate` for a frame's pose, and
     `set_pose` once the SLAM has decided a frame's pose (`trusted=False`: not triangulated from).
@@ -138,6 +156,8 @@ class ClassicalFrontend:
         if ok.sum() < need:
             return None
         X = X[ok]
+        if self.cfg.start_ba:
+            T1, X = self._refine_pair(T1, X, uv0[i0][inl][ok], uv1[i1][inl][ok])
         rays0, rays1 = X / np.linalg.norm(X, axis=1, keepdims=True), X - T1[:3, 3]
         rays1 /= np.linalg.norm(rays1, axis=1, keepdims=True)
         parallax = np.degrees(np.median(np.arccos(np.clip((rays0 * rays1).sum(1), -1, 1))))
@@ -150,6 +170,20 @@ class ClassicalFrontend:
         s = median_m / float(np.median(X[:, 2]))
         T1[:3, 3] *= s
         return TwoViewTracks(T1, X * s, int(n_in), float(parallax))
+
+    def _refine_pair(self, T1: np.ndarray, X: np.ndarray, uv0: np.ndarray, uv1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Two views (the first at the identity, the second at T1 (4, 4)) and their points X (M, 3)
+        seen at uv0 / uv1 (M, 2) by a bundle adjustment with the first view held and the baseline's
+        length kept (`hold_scale`). Why: RANSAC's essential matrix comes from minimal samples, and
+        the start's views are held fixed by every later adjustment (`ba_fixed`), so their error
+        stays in the trajectory and in every stereo pair (Replica clip: stereo depth 5% short)."""
+        m = len(X)
+        cam, pt = np.repeat([0, 1], m), np.tile(np.arange(m), 2)
+        before = [np.eye(4), T1]
+        poses, X, _ = bundle_adjust_schur(before, 1, X, cam, pt, np.concatenate([uv0, uv1]), self.intr,
+                                          self.cfg.reproj_px, self.cfg.ba_iters)
+        poses, X = hold_scale(before, poses, X)
+        return poses[1], X
 
     # -- poses the SLAM decided --------------------------------------------------------
     def set_pose(self, index: int, T_world_cam: np.ndarray, trusted: bool = True) -> None:
@@ -234,9 +268,12 @@ class ClassicalFrontend:
                     uv.append(uv_k[j])
         if len(cam) < 6 * len(frames):
             return
+        before = [self.poses[k] for k in frames]
         poses, X, self.last_ba_rms = bundle_adjust_schur(
-            [self.poses[k] for k in frames], self.cfg.ba_fixed, np.stack([self.landmarks[t] for t in lm_ids]),
+            before, self.cfg.ba_fixed, np.stack([self.landmarks[t] for t in lm_ids]),
             np.array(cam), np.array(pt), np.array(uv), self.intr, self.cfg.reproj_px, self.cfg.ba_iters)
+        if self.cfg.ba_fixed == 1:
+            poses, X = hold_scale(before, poses, X)
         for k, T in zip(frames, poses):
             self.poses[k] = T
         for t, x in zip(lm_ids, X):

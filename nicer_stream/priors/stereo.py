@@ -28,8 +28,20 @@ from nicer_stream.types import Frame, Intrinsics
 
 
 def grey(rgb: np.ndarray) -> np.ndarray:
-    """(H, W, 3) float RGB in [0, 1] -> (H, W) float32 luminance."""
+    """(H, W, 3) float RGB in [0, 1] -> (H, W) float32 luminance; an (H, W) grey image (float in
+    [0, 1] or uint8) is returned as float32 in [0, 1]."""
+    if rgb.ndim == 2:
+        return rgb.astype(np.float32) / 255.0 if rgb.dtype == np.uint8 else rgb.astype(np.float32)
     return cv2.cvtColor(np.ascontiguousarray(rgb, dtype=np.float32), cv2.COLOR_RGB2GRAY)
+
+
+def shrink_depth(depth: np.ndarray, width: int, height: int) -> np.ndarray:
+    """(H, W) z-depth with 0 where unknown -> (height, width): the mean of the known depths under
+    each output pixel, 0 where fewer than half of them are known."""
+    known = (depth > 0).astype(np.float32)
+    total = cv2.resize(depth.astype(np.float32) * known, (width, height), interpolation=cv2.INTER_AREA)
+    share = cv2.resize(known, (width, height), interpolation=cv2.INTER_AREA)
+    return np.where(share >= 0.5, total / np.maximum(share, 1e-6), 0.0).astype(np.float32)
 
 
 def plane_homography(K: np.ndarray, T_partner_ref: np.ndarray, depth: float) -> np.ndarray:
@@ -63,8 +75,8 @@ def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tup
                 params: StereoConfig = StereoConfig()) -> np.ndarray:
     """Plane-sweep depth of the reference image.
 
-    ref_rgb (H, W, 3) float [0, 1]; T_world_ref (4, 4) T_world_cam; partners: (rgb (H, W, 3),
-    T_world_cam (4, 4)) pairs, same intrinsics `intr`; near < far: the z-depth range searched,
+    ref_rgb (H, W, 3) float [0, 1] or (H, W) grey (`grey`); T_world_ref (4, 4) T_world_cam; partners:
+    (image of the same kind and size, T_world_cam (4, 4)) pairs, same intrinsics `intr`; near < far: the z-depth range searched,
     in the poses' unit. Returns the z-depth (H, W) float32 in the poses' unit, 0 where not
     confident."""
     if not partners:

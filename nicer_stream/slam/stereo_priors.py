@@ -24,7 +24,8 @@ from nicer_stream.geometry.camera import in_image
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.priors.normals_from_depth import fill_nearest, normals_from_depth
-from nicer_stream.priors.stereo import sweep_depth
+from nicer_stream.priors.stereo import shrink_depth, sweep_depth
+from nicer_stream.types import DetailImage, Intrinsics
 
 
 def partners_of(k: int, candidates: list[int], n: int = 2) -> tuple[int, ...]:
@@ -125,13 +126,22 @@ class StereoPriors:
         self.params = params
         self.used: dict[int, tuple[int, ...]] = {}  # keyframe -> partners its prior came from
         self.recent: dict[int, np.ndarray] = {}  # the last `partner_frames` images (H, W, 3), by index
+        self.sharp: dict[int, tuple[np.ndarray, Intrinsics]] = {}  # larger grey images to sweep (`max_side`)
         self.seconds = 0.0
 
-    def observe(self, index: int, rgb: np.ndarray) -> None:
-        """Keep frame `index`'s image (H, W, 3) as a partner candidate."""
+    def observe(self, index: int, rgb: np.ndarray, detail: DetailImage | None = None) -> None:
+        """Keep frame `index`'s image (H, W, 3) as a partner candidate, and its larger grey copy
+        (`Frame.detail`) at up to `max_side` pixels where it is larger than `rgb`."""
         self.recent[index] = rgb
         for old in sorted(self.recent)[:-self.params.partner_frames or None]:
             del self.recent[old]
+        if detail is not None and self.params.max_side is not None:
+            h, w = detail.grey.shape
+            f = min(1.0, self.params.max_side / max(h, w))
+            size = (max(1, round(w * f)), max(1, round(h * f)))
+            if size[0] > rgb.shape[1]:
+                g = detail.grey if f == 1.0 else cv2.resize(detail.grey, size, interpolation=cv2.INTER_AREA)
+                self.sharp[index] = (g, detail.intrinsics.resized(*size))
 
     def update(self, window: list[int], frames: dict[int, MapFrame], poses: dict[int, torch.Tensor],
                keyframes: list[int], bound: SceneBound, landmarks: np.ndarray | None = None,
@@ -141,6 +151,8 @@ class StereoPriors:
         `consistent`: T_world_cam (4, 4) of frames from one self-consistent estimator (the
         frontend's); a pair whose frames both have one takes its relative pose from them (`pair_poses`)."""
         t0 = time.perf_counter()
+        keep = set(keyframes) | set(self.recent)
+        self.sharp = {i: v for i, v in self.sharp.items() if i in keep}
         candidates = [k for k in keyframes if k in frames and k in poses]
         pool = self._images(frames, candidates, poses)
         done = []
@@ -157,7 +169,13 @@ class StereoPriors:
             if old is not None and (min(old) < k < max(old) or not (two_sided or len(partners) > len(old))):
                 continue  # already two-sided, or no better now (better: two-sided, or a second partner)
             pair = pair_poses(k, partners, poses, consistent or {})
-            self._compute(frames[k], [(images[p], pair[p]) for p in partners], poses, bound, landmarks)
+            sharp = [self.sharp.get(i) for i in (k, *partners)]
+            if all(v is not None and v[1] == sharp[0][1] for v in sharp):  # every image larger, one size
+                (ref, intr), rest = sharp[0], sharp[1:]
+                self._compute(frames[k], [(g, pair[p]) for (g, _), p in zip(rest, partners)], poses, bound,
+                              landmarks, (ref, intr))
+            else:
+                self._compute(frames[k], [(images[p], pair[p]) for p in partners], poses, bound, landmarks)
             self.used[k] = partners
             done.append(k)
         self.seconds += time.perf_counter() - t0
@@ -182,14 +200,21 @@ class StereoPriors:
         return partners_by_baseline(k, centres, float(np.median(z)), self.params.target_baseline)
 
     def _compute(self, f: MapFrame, partners: list[tuple[np.ndarray, np.ndarray]], poses: dict[int, torch.Tensor],
-                 bound: SceneBound, landmarks: np.ndarray | None = None) -> None:
-        """f's priors from `partners`: (image (H, W, 3), T_world_cam (4, 4) float64) pairs."""
+                 bound: SceneBound, landmarks: np.ndarray | None = None,
+                 sharp: tuple[np.ndarray, Intrinsics] | None = None) -> None:
+        """f's priors from `partners`: (image, T_world_cam (4, 4) float64) pairs, images (H, W, 3) at
+        the map's size, or grey at `sharp`'s size when `sharp` gives f's own larger image and its
+        intrinsics (the depth is then averaged down to the map's pixels)."""
         T = poses[f.index].double().cpu().numpy()
         near, far = depth_range(T, bound)
         seen = landmark_depth_range(T, landmarks, f.intr, self.params.landmark_margin, self.params.min_landmarks)
         if seen is not None and max(near, seen[0]) < min(far, seen[1]):
             near, far = max(near, seen[0]), min(far, seen[1])
-        depth = sweep_depth(f.rgb.cpu().numpy(), T, partners, f.intr, near, far, self.params)
+        if sharp is None:
+            depth = sweep_depth(f.rgb.cpu().numpy(), T, partners, f.intr, near, far, self.params)
+        else:
+            depth = sweep_depth(sharp[0], T, partners, sharp[1], near, far, self.params)
+            depth = shrink_depth(depth, f.intr.width, f.intr.height)
         f.depth_prior = torch.as_tensor(depth, device=f.rgb.device)
         f.normal_prior = torch.as_tensor(stereo_normals(depth, f.intr), device=f.rgb.device)
         f.depth_scale_shift = (1.0, 0.0) if self.params.scale == "fixed" else None

@@ -141,7 +141,7 @@ class SlamSystem:
     def _step(self, frame: Frame, priors: Priors | None) -> list[Event]:
         mf = MapFrame.from_frame(frame, priors, self.device) if np.isfinite(frame.rgb).all() else None
         if self.stereo is not None and mf is not None:
-            self.stereo.observe(frame.index, frame.rgb)
+            self.stereo.observe(frame.index, frame.rgb, frame.detail)
         if self.frontend is not None and mf is not None:
             with self._frontend_timer():
                 if frame.detail is not None:  # the source's larger image (`frontend.max_side`)
