@@ -96,13 +96,15 @@ def test_the_fallback_start_takes_a_pair_below_the_usual_parallax():
     """Room frames 0 and 2 (4 cm apart, ~1.2 degrees of parallax): below the start's 2 degrees, so
     the usual start finds nothing; the fallback (`fallback_parallax_deg = 0.5`) gives the second
     view in GT's direction of travel (1.1 degrees off here), reports its parallax and keeps the
-    scale convention; a fallback threshold of 0 (the default) turns it off."""
+    scale convention; a fallback threshold of 0 (the default) turns it off. The essential matrix
+    alone (`start_ba` off): the two-view adjustment moved this narrow pair's direction to 5.1
+    degrees from GT (measured), a case where it does not help (docs/priors.md)."""
     from dataclasses import replace
 
     src = list(open_source("synthetic:room?frames=120", SourceOptions(max_frames=3)))
-    cfg = replace(FrontendConfig(), fallback_parallax_deg=0.5)
+    cfg = replace(FrontendConfig(), fallback_parallax_deg=0.5, start_ba=False)
     fe = ClassicalFrontend(cfg)
-    off = ClassicalFrontend(FrontendConfig())
+    off = ClassicalFrontend(replace(FrontendConfig(), start_ba=False))
     for f in src:
         fe.observe(f.index, f.rgb, f.intrinsics)
         off.observe(f.index, f.rgb, f.intrinsics)
