@@ -101,7 +101,7 @@ def run_map(req: MapRequest) -> Path:
     torch.manual_seed(cfg.seed)
     retain_freed_memory()
     enable_onednn_matmul()
-    source, _ = open_configured(req.source, req.source_opts, cfg)
+    source, _ = open_configured(req.source, req.source_opts, cfg, tracking=False)
     frames = list(source)
     if not frames:
         raise UserError(f"source {req.source} gave no frames")

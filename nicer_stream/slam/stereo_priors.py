@@ -136,12 +136,12 @@ class StereoPriors:
         for old in sorted(self.recent)[:-self.params.partner_frames or None]:
             del self.recent[old]
         if detail is not None and self.params.max_side is not None:
-            h, w = detail.grey.shape
-            f = min(1.0, self.params.max_side / max(h, w))
-            size = (max(1, round(w * f)), max(1, round(h * f)))
-            if size[0] > rgb.shape[1]:
-                g = detail.grey if f == 1.0 else cv2.resize(detail.grey, size, interpolation=cv2.INTER_AREA)
-                self.sharp[index] = (g, detail.intrinsics.resized(*size))
+            f = min(1.0, self.params.max_side / max(detail.intrinsics.width, detail.intrinsics.height))
+            intr = detail.intrinsics.scaled(f)
+            if intr.width > rgb.shape[1]:
+                g = detail.grey if f == 1.0 else cv2.resize(detail.grey, (intr.width, intr.height),
+                                                            interpolation=cv2.INTER_AREA)
+                self.sharp[index] = (g, intr)
 
     def update(self, window: list[int], frames: dict[int, MapFrame], poses: dict[int, torch.Tensor],
                keyframes: list[int], bound: SceneBound, landmarks: np.ndarray | None = None,

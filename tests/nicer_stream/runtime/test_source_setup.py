@@ -8,7 +8,8 @@ from sources.base import SourceOptions
 
 def test_the_frontend_gets_the_sources_larger_image_only_when_a_frontend_runs(replica_dir):
     """`fast` (classical frontend): the map's frames at 320 px carry the 1200 x 680 original as
-    grey; `paper` (no frontend) and `[frontend] max_side` unset carry none; an explicit
+    grey; `paper` (no frontend), `[frontend] max_side` unset and a run that does not track carry
+    none; an explicit
     --max-side still sizes the map's frames."""
     uri = f"replica:{replica_dir}"
     src, opts = open_configured(uri, SourceOptions(max_frames=1), fast())
@@ -20,6 +21,8 @@ def test_the_frontend_gets_the_sources_larger_image_only_when_a_frontend_runs(re
     for c in (paper(), replace(cfg, frontend=replace(cfg.frontend, max_side=None))):
         src, opts = open_configured(uri, SourceOptions(max_frames=1), c)
         assert opts.detail_side is None and next(iter(src)).detail is None
+    src, opts = open_configured(uri, SourceOptions(max_frames=1), cfg, tracking=False)  # `map`: known poses
+    assert opts.detail_side is None and next(iter(src)).detail is None
     src, _ = open_configured(uri, SourceOptions(max_frames=1, max_side=160), fast())
     f = next(iter(src))
     assert f.rgb.shape[1] == 160 and f.detail.grey.shape == (680, 1200)
