@@ -396,6 +396,19 @@ class StereoConfig:
     left 14.8% / 10.6% / 9.6% of them >10% off (every keyframe; GT poses: 2.8% / 3.3%)."""
     partner_frames: int = 10
     """Recent frames kept (images) as stereo partners besides the keyframes."""
+    edge_window: int = 0
+    """Depth-edge filter (`drop_depth_edges`): a pixel whose edge_window-square neighbourhood's
+    known depths span more than `edge_rel` is dropped; < 2: off."""
+    edge_rel: float = 0.1
+    """The span (relative to the nearest depth) the edge filter allows."""
+    speckle_size: int = 0
+    """Blobs of fewer pixels than this (at the sweep's size) are dropped (`drop_speckles`); 0: off."""
+    speckle_step: float = 0.02
+    """Neighbours belong to one blob where their inverse depths differ by at most this share
+    of the median inverse depth."""
+    fill_min_inliers: float = 0.0
+    """Large holes (untextured walls) are filled by the plane their rim's known depths fit,
+    where at least this share of the rim lies on it (`priors/plane_fill.py`); 0: off."""
 
 
 @dataclass(frozen=True)

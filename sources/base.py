@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 
 from nicer_stream.errors import SourceError
-from nicer_stream.frontend.klt import to_grey_u8
+from nicer_stream.grey import to_grey_u8
 from nicer_stream.types import DetailImage, Frame, Intrinsics
 
 

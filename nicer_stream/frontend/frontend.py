@@ -10,7 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from nicer_stream.config import FrontendConfig
-from nicer_stream.frontend.klt import KltTracks, to_grey_u8
+from nicer_stream.frontend.klt import KltTracks
+from nicer_stream.grey import to_grey_u8
 from nicer_stream.frontend.sift import SiftTracks
 from nicer_stream.frontend.schur_ba import bundle_adjust_schur
 from nicer_stream.frontend.triangulate import project, triangulate

@@ -5,14 +5,6 @@ import cv2
 import numpy as np
 
 
-def to_grey_u8(rgb: np.ndarray) -> np.ndarray:
-    """(H, W, 3) float RGB in [0, 1] -> (H, W) uint8 luminance; an (H, W) uint8 image is returned as it is."""
-    if rgb.ndim == 2 and rgb.dtype == np.uint8:
-        return rgb
-    u8 = (np.clip(rgb, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-    return cv2.cvtColor(u8, cv2.COLOR_RGB2GRAY)
-
-
 def detect_corners(grey: np.ndarray, n: int, min_distance: float, avoid: np.ndarray | None = None) -> np.ndarray:
     """Up to `n` Shi-Tomasi corners (M, 2) float32 (u, v), at least `min_distance` pixels
     from each other and from the points `avoid` (K, 2)."""

@@ -23,16 +23,9 @@ import cv2
 import numpy as np
 
 from nicer_stream.config import StereoConfig
+from nicer_stream.grey import to_grey_f32
 from nicer_stream.priors.base import DepthNormal, DepthNormalProvider
 from nicer_stream.types import Frame, Intrinsics
-
-
-def grey(rgb: np.ndarray) -> np.ndarray:
-    """(H, W, 3) float RGB in [0, 1] -> (H, W) float32 luminance; an (H, W) grey image (float in
-    [0, 1] or uint8) is returned as float32 in [0, 1]."""
-    if rgb.ndim == 2:
-        return rgb.astype(np.float32) / 255.0 if rgb.dtype == np.uint8 else rgb.astype(np.float32)
-    return cv2.cvtColor(np.ascontiguousarray(rgb, dtype=np.float32), cv2.COLOR_RGB2GRAY)
 
 
 def shrink_depth(depth: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -42,6 +35,36 @@ def shrink_depth(depth: np.ndarray, width: int, height: int) -> np.ndarray:
     total = cv2.resize(depth.astype(np.float32) * known, (width, height), interpolation=cv2.INTER_AREA)
     share = cv2.resize(known, (width, height), interpolation=cv2.INTER_AREA)
     return np.where(share >= 0.5, total / np.maximum(share, 1e-6), 0.0).astype(np.float32)
+
+
+def drop_depth_edges(depth: np.ndarray, window: int, max_rel: float) -> np.ndarray:
+    """(H, W) z-depth, 0 where unknown -> the same with 0 wherever the known depths in the
+    `window` x `window` square around a pixel span more than `max_rel` of their smallest. Why: a
+    matching window that straddles a depth edge takes the nearer surface's texture, so the
+    foreground spreads over the background beside every edge (Replica, GT poses: the largest
+    share of the sweep's L1). window < 2 keeps everything."""
+    if window < 2:
+        return depth
+    known = depth > 0
+    kernel = np.ones((window, window), np.uint8)
+    top = cv2.dilate(np.where(known, depth, 0.0).astype(np.float32), kernel)
+    bottom = cv2.erode(np.where(known, depth, 1e30).astype(np.float32), kernel)
+    return np.where(known & (top <= bottom * (1.0 + max_rel)), depth, 0.0).astype(np.float32)
+
+
+def drop_speckles(depth: np.ndarray, max_size: int, max_step: float) -> np.ndarray:
+    """(H, W) z-depth, 0 where unknown -> the same with 0 on connected blobs of fewer than
+    `max_size` pixels, neighbours joined where their inverse depths differ by at most
+    `max_step` of the median inverse depth: small islands of consistent but wrong matches (as
+    `cv2.StereoSGBM`'s speckle filter). max_size < 1 keeps everything."""
+    known = depth > 0
+    if max_size < 1 or not known.any():
+        return depth
+    inv = np.where(known, 1.0 / np.maximum(depth, 1e-9), 0.0)
+    unit = float(np.median(inv[known])) * max_step / 16.0  # filterSpeckles takes int16 steps
+    disparity = np.round(inv / unit).clip(0, 32767).astype(np.int16)
+    cv2.filterSpeckles(disparity, 0, int(max_size), 16)
+    return np.where(known & (disparity != 0), depth, 0.0).astype(np.float32)
 
 
 def plane_homography(K: np.ndarray, T_partner_ref: np.ndarray, depth: float) -> np.ndarray:
@@ -75,7 +98,7 @@ def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tup
                 params: StereoConfig = StereoConfig()) -> np.ndarray:
     """Plane-sweep depth of the reference image.
 
-    ref_rgb (H, W, 3) float [0, 1] or (H, W) grey (`grey`); T_world_ref (4, 4) T_world_cam; partners:
+    ref_rgb (H, W, 3) float [0, 1] or (H, W) grey (`to_grey_f32`); T_world_ref (4, 4) T_world_cam; partners:
     (image of the same kind and size, T_world_cam (4, 4)) pairs, same intrinsics `intr`; near < far: the z-depth range searched,
     in the poses' unit. Returns the z-depth (H, W) float32 in the poses' unit, 0 where not
     confident."""
@@ -83,13 +106,13 @@ def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tup
         raise ValueError("plane sweep needs at least one partner image")
     w, (h, wd) = params.window, ref_rgb.shape[:2]
     K = intr.matrix()
-    a = grey(ref_rgb)
+    a = to_grey_f32(ref_rgb)
     mean_a = _box(a, w)
     std_a = np.sqrt(np.maximum(_box(a * a, w) - mean_a * mean_a, 0.0))
     rel = [np.linalg.inv(T) @ T_world_ref for _, T in partners]
     n = plane_count(intr, [float(np.linalg.norm(T[:3, 3])) for T in rel], near, far, params)
     inv_d = np.linspace(1.0 / near, 1.0 / far, n)
-    greys = [grey(rgb) for rgb, _ in partners]
+    greys = [to_grey_f32(rgb) for rgb, _ in partners]
     ones = np.ones((h, wd), np.float32)
     # Cost 1 - ZNCC per partner and plane; 2 (worse than any match) where a window is not
     # wholly inside the partner's image.
@@ -125,7 +148,9 @@ def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tup
         planes = np.arange(n)[:, None, None]
         far_cost = np.where(np.abs(planes - k[None]) >= 2, cost, np.inf).min(0)
         ok &= far_cost - c0 >= params.min_uniqueness
-    return np.where(ok, depth, 0.0).astype(np.float32)
+    depth = np.where(ok, depth, 0.0).astype(np.float32)
+    depth = drop_speckles(depth, params.speckle_size, params.speckle_step)
+    return drop_depth_edges(depth, params.edge_window, params.edge_rel)
 
 
 class StereoDepthNormal(DepthNormalProvider):

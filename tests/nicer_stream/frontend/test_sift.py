@@ -2,7 +2,8 @@
 memory stays bounded, and an image of another size starts new tracks."""
 import numpy as np
 
-from nicer_stream.frontend.klt import KltTracks, to_grey_u8
+from nicer_stream.frontend.klt import KltTracks
+from nicer_stream.grey import to_grey_u8
 from nicer_stream.frontend.sift import SiftTracks
 from sources import open_source
 from sources.base import SourceOptions

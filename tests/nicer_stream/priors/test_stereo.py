@@ -3,7 +3,7 @@ textured surfaces, untextured and unseen pixels not confident, the homography by
 import numpy as np
 import pytest
 
-from nicer_stream.priors.stereo import plane_homography, sweep_depth
+from nicer_stream.priors.stereo import drop_depth_edges, drop_speckles, plane_homography, sweep_depth
 from nicer_stream.types import Intrinsics
 from sources import open_source
 from sources.base import SourceOptions
@@ -63,3 +63,35 @@ def test_sweep_needs_a_partner(room):
     f = room[0]
     with pytest.raises(ValueError):
         sweep_depth(f.rgb, f.gt_pose, [], f.intrinsics, 0.3, 5.0)
+
+
+def test_the_edge_filter_drops_both_sides_of_a_depth_step_and_keeps_a_slanted_plane():
+    rows, cols = np.indices((40, 60))
+    slanted = (2.0 + 0.005 * cols).astype(np.float32)  # 0.25% per pixel: a floor seen at an angle
+    step = np.where(cols < 30, 1.0, 2.0).astype(np.float32)
+    np.testing.assert_array_equal(drop_depth_edges(slanted, 7, 0.1), slanted)
+    out = drop_depth_edges(step, 7, 0.1)
+    assert (out[:, 27:33] == 0).all()  # within 3 px of the step: its window straddles it
+    np.testing.assert_array_equal(out[:, :27], step[:, :27])
+    np.testing.assert_array_equal(out[:, 33:], step[:, 33:])
+    holes = slanted.copy()
+    holes[10:20, 10:20] = 0  # unknown pixels neither count as an edge nor come back
+    np.testing.assert_array_equal(drop_depth_edges(holes, 7, 0.1), holes)
+    np.testing.assert_array_equal(drop_depth_edges(step, 1, 0.1), step)  # off
+
+
+def test_the_speckle_filter_drops_small_islands_and_keeps_large_surfaces():
+    d = np.full((60, 80), 2.0, np.float32)
+    d[10:14, 10:14] = 1.0  # a 16-pixel island of wrong depth inside the wall
+    d[40:44, 60:64] = 0.0
+    d[41:43, 61:63] = 3.0  # a 4-pixel island inside a hole
+    out = drop_speckles(d, 50, 0.02)
+    assert (out[10:14, 10:14] == 0).all() and (out[41:43, 61:63] == 0).all()
+    keep = np.ones_like(d, bool)
+    keep[10:14, 10:14] = keep[40:44, 60:64] = False
+    np.testing.assert_array_equal(out[keep], d[keep])
+    np.testing.assert_array_equal(drop_speckles(d, 0, 0.02), d)  # off
+    # A 200-pixel ramp of ~1.3% per pixel is one blob at a 2% step, so it stays; cut at 4% steps it falls apart.
+    ramp = np.tile(np.linspace(1.0, 1.5, 40, dtype=np.float32), (5, 1))
+    np.testing.assert_array_equal(drop_speckles(ramp, 150, 0.02), ramp)
+    assert (drop_speckles(ramp[:, ::3], 20, 0.02) == 0).all()
