@@ -277,7 +277,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                 notes.append(f"priors: {engine.depth_normal.description}")
             if slam.scale_rule:
                 how = slam.init_note or "its shift from the normal prior"
-                notes.append(f"metric scale: first frame's depth-prior median taken as {cfg.loss.first_depth_median_m} m; "
+                notes.append(f"metric scale: first frame's {slam.scale_from} taken as {cfg.loss.first_depth_median_m} m; "
                              f"shift {slam.scale_rule[1]:.4g}: {how}")
             if pacer.dropped:
                 notes.append(f"--realtime dropped {pacer.dropped} frames (not in trajectory.tum)")

@@ -23,7 +23,8 @@ from nicer_stream.frontend.triangulate import project
 from nicer_stream.geometry.camera import in_image
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.model.bound import SceneBound
-from nicer_stream.priors.plane_fill import fill_planar_holes
+from nicer_stream.grey import to_grey_f32
+from nicer_stream.priors.plane_fill import fill_planar_holes, local_std
 from nicer_stream.priors.normals_from_depth import fill_nearest, normals_from_depth
 from nicer_stream.priors.stereo import shrink_depth, sweep_depth
 from nicer_stream.types import DetailImage, Intrinsics
@@ -217,7 +218,8 @@ class StereoPriors:
             depth = sweep_depth(sharp[0], T, partners, sharp[1], near, far, self.params)
             depth = shrink_depth(depth, f.intr.width, f.intr.height)
         if self.params.fill_min_inliers > 0:
-            depth = fill_planar_holes(depth, f.intr, min_inliers=self.params.fill_min_inliers)
+            blank = local_std(to_grey_f32(f.rgb.cpu().numpy()), self.params.window) < self.params.fill_max_texture
+            depth = fill_planar_holes(depth, f.intr, blank, min_inliers=self.params.fill_min_inliers)
         f.depth_prior = torch.as_tensor(depth, device=f.rgb.device)
-        f.normal_prior = torch.as_tensor(stereo_normals(depth, f.intr), device=f.rgb.device)
+        f.normal_prior = torch.as_tensor(stereo_normals(depth, f.intr), device=f.rgb.device) if self.params.normals else None
         f.depth_scale_shift = (1.0, 0.0) if self.params.scale == "fixed" else None

@@ -34,7 +34,7 @@ from nicer_stream.slam.map_jobs import InlineMapping, MapJob, MappingExecutor, M
 from nicer_stream.slam.motion import frontend_disagreement, predict_pose, tracking_failure
 from nicer_stream.slam.pose_corrections import spread_corrections
 from nicer_stream.slam.stereo_priors import StereoPriors
-from nicer_stream.slam.two_view import TwoView, two_view_init
+from nicer_stream.slam.two_view import TwoView, two_view_from_tracks, two_view_init
 from nicer_stream.slam.window import ba_frames, select_window
 from nicer_stream.tracking.flow_init import pose_from_flows
 from nicer_stream.tracking.tracker import Tracker
@@ -117,6 +117,7 @@ class SlamSystem:
         self._replay: set[int] = set()  # held frames the start has yet to record (flows to them stay)
         self.pending_raw: list[Frame] = []
         self.init_note = ""
+        self.scale_from = "depth-prior median"  # what `first_depth_median_m` sets: the first frame's ...
         # 'auto': the frontend where the depth prior needs good poses (stereo) or starts the SLAM.
         use = cfg.tracking.frontend == "classical" or (cfg.tracking.frontend == "auto" and stereo)
         self.frontend = ClassicalFrontend(cfg.frontend) if use else None
@@ -371,13 +372,25 @@ class SlamSystem:
                             last.index, fview.parallax_deg)
         elif last is not None and first.depth_prior is not None:
             median_m = self.cfg.loss.first_depth_median_m
-            reference = first_scale_shift(first, median_m) if first.normal_prior is not None else None
-            view = two_view_init(first, last, median_m, reference=reference)
+            tracks = None
+            if self.frontend is not None and self.cfg.frontend.prior_start:
+                with self._frontend_timer():
+                    tracks = self.frontend.two_view(first.index, last.index, median_m)
+            view = None if tracks is None else two_view_from_tracks(first, last, tracks.T_world_second,
+                                                                    tracks.points, tracks.inliers)
+            if view is not None:
+                self.scale_from = "median tracked depth"
+                self.init_note = (f"two-view start with frame {last.index} from the frontend's tracks ({tracks.inliers} "
+                                  f"essential-matrix inliers, {tracks.parallax_deg:.1f} degrees of parallax), both "
+                                  f"priors' scale and shift fitted to its points (first: shift {view.first_scale_shift[1]:.3f})")
+            else:
+                reference = first_scale_shift(first, median_m) if first.normal_prior is not None else None
+                view = two_view_init(first, last, median_m, reference=reference)
         if view is None:
             log.warning("two-view start failed (too little parallax or flow, or a prior fit the checks reject): scale and shift from frame %d alone",
                         first.index)
             self.init_note = "two-view start failed: first frame's shift from the normal prior"
-        elif points is None:
+        elif points is None and not self.init_note:
             self.init_note = (f"two-view start with frame {last.index} ({view.inliers} essential-matrix inliers): "
                               f"first prior's shift {view.first_scale_shift[1]:.3f} from flow triangulation")
         events = self._initialise(first, last if view is not None else None, view, points)

@@ -144,3 +144,57 @@ def test_a_start_far_from_the_normal_prior_start_is_rejected_with_dis_flow_not_w
         off = target_disagreement(first.depth_prior, free.first_scale_shift, ref)
         assert (off < 0.04) == kept, (prior, flow, off)
         assert (two_view_init(first, second, 2.0, reference=ref) is not None) == kept
+
+
+def test_a_prior_fitted_to_points_recovers_its_scale_and_shift():
+    """Closed form: a prior that is exactly w * z + q of the points' depths gives back (w, q),
+    with a tenth of the points wrong by 20 cm (the robust fit drops them)."""
+    from nicer_stream.slam.two_view import prior_fit_to_points
+
+    f0, fk, m0, mk = _pair(k=5, side=64)
+    z = m0.depth_prior.clone()
+    z[:] = 2.0 + torch.linspace(0, 1, z.numel()).reshape(z.shape)  # z-depth of every pixel
+    m0.depth_prior = 3.0 * z + 0.5
+    v, u = np.indices(z.shape)
+    rays = np.stack([(u - m0.intr.cx) / m0.intr.fx, (v - m0.intr.cy) / m0.intr.fy, np.ones(u.shape)], -1)
+    points = (rays * z.numpy()[..., None]).reshape(-1, 3)[::7].copy()
+    points[::10] *= 1.0 + 0.2 / points[::10, 2:3]  # 20 cm deeper along their rays
+    w, q = prior_fit_to_points(m0, np.eye(4), points)
+    assert abs(w - 3.0) < 1e-6 and abs(q - 0.5) < 1e-5
+    m0.depth_prior = -z  # depth decreasing with the prior: no real fit
+    assert prior_fit_to_points(m0, np.eye(4), points) is None
+
+
+def test_the_start_from_the_frontends_tracks_places_the_second_view_and_both_priors_at_its_scale(replica_dir):
+    """Replica frames 0 and 10, realistic oracle with DIS flow: the dense-flow start is rejected
+    there (the test above); the frontend's tracks at 1200 px give the second view within 0.1
+    degrees of GT (its direction within 1.5), and both priors fitted to the tracks' points."""
+    from nicer_stream.config import FrontendConfig
+    from nicer_stream.frontend.frontend import ClassicalFrontend
+    from nicer_stream.frontend.triangulate import project
+    from nicer_stream.geometry.camera import in_image
+    from nicer_stream.slam.two_view import two_view_from_tracks
+
+    frames = list(open_source(f"replica:{replica_dir}", SourceOptions(max_side=320, max_frames=11, detail_side=1200)))
+    engine = make_engine("oracle", "dis", "cpu")
+    first = map_frame(frames[0], engine, [frames[10]], "cpu")
+    second = map_frame(frames[10], engine, [frames[0]], "cpu")
+    fe = ClassicalFrontend(FrontendConfig())
+    for f in frames:
+        fe.observe(f.index, f.detail.grey, f.detail.intrinsics)
+    tracks = fe.two_view(0, 10, 2.0)
+    view = two_view_from_tracks(first, second, tracks.T_world_second, tracks.points, tracks.inliers)
+    assert view is not None and view.second_scale_shift is not None
+    rel = np.linalg.inv(frames[0].gt_pose) @ frames[10].gt_pose
+    R_err = view.T_world_second[:3, :3].T @ rel[:3, :3]
+    assert np.degrees(np.arccos(np.clip((np.trace(R_err) - 1) / 2, -1, 1))) < 0.1
+
+    t = view.T_world_second[:3, 3]
+    assert np.degrees(np.arccos(t @ rel[:3, 3] / np.linalg.norm(t) / np.linalg.norm(rel[:3, 3]))) < 1.5
+    # Both priors at the tracks' scale: their depths at the points' pixels match the points'.
+    for frame, T, wq in ((first, np.eye(4), view.first_scale_shift), (second, view.T_world_second, view.second_scale_shift)):
+        uv, z = project(T, tracks.points, frame.intr)
+        ok = (z > 0) & in_image(uv, frame.intr)
+        u, v = np.round(uv[ok]).astype(int).T
+        d = (frame.depth_prior.numpy()[v, u] - wq[1]) / wq[0]
+        assert abs(np.median(d / z[ok]) - 1.0) < 0.01
