@@ -11,14 +11,10 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import torch
 
+from nicer_stream.geometry.camera import camera_dirs, pixel_grid
 from nicer_stream.types import Intrinsics
-
-
-def camera_rays(intr: Intrinsics) -> np.ndarray:
-    """(H, W, 3) rays (x/z, y/z, 1) of every pixel centre: z-depth times a ray is the point."""
-    v, u = np.indices((intr.height, intr.width), dtype=np.float64)
-    return np.stack([(u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy, np.ones_like(u)], -1)
 
 
 def fit_plane(points: np.ndarray, tol: float, rng: np.random.Generator, tries: int = 64) -> tuple[np.ndarray, float, float]:
@@ -46,13 +42,6 @@ def fit_plane(points: np.ndarray, tol: float, rng: np.random.Generator, tries: i
     return n, c, float(inliers.mean())
 
 
-def local_std(grey: np.ndarray, window: int) -> np.ndarray:
-    """(H, W) float grey image -> (H, W) standard deviation of its `window` x `window` square."""
-    mean = cv2.boxFilter(grey, -1, (window, window), borderType=cv2.BORDER_REFLECT)
-    sq = cv2.boxFilter(grey * grey, -1, (window, window), borderType=cv2.BORDER_REFLECT)
-    return np.sqrt(np.maximum(sq - mean * mean, 0.0))
-
-
 def fill_planar_holes(depth: np.ndarray, intr: Intrinsics, blank: np.ndarray | None = None, min_area: float = 0.01,
                       rim: int = 4, tol: float = 0.02, min_inliers: float = 0.7, seed: int = 0) -> np.ndarray:
     """(H, W) z-depth with 0 where unknown -> the same with each hole (connected unknown region
@@ -72,7 +61,8 @@ def fill_planar_holes(depth: np.ndarray, intr: Intrinsics, blank: np.ndarray | N
     kernel = np.ones((2 * rim + 1, 2 * rim + 1), np.uint8)
     wide = cv2.morphologyEx((~known).astype(np.uint8), cv2.MORPH_OPEN, kernel)
     count, labels = cv2.connectedComponents(wide, connectivity=4)
-    rays = camera_rays(intr)
+    # (H, W, 3) rays with z = 1: z-depth times a ray is the point.
+    rays = camera_dirs(pixel_grid(intr, dtype=torch.float64), intr).numpy().reshape(intr.height, intr.width, 3)
     rng = np.random.default_rng(seed)
     out = depth.copy()
     for label in range(1, count):

@@ -79,6 +79,12 @@ def _box(x: np.ndarray, w: int) -> np.ndarray:
     return cv2.boxFilter(x, -1, (w, w), normalize=True, borderType=cv2.BORDER_REFLECT)
 
 
+def local_std(grey: np.ndarray, window: int) -> np.ndarray:
+    """(H, W) float grey image -> (H, W) standard deviation of its `window` x `window` square."""
+    mean = _box(grey, window)
+    return np.sqrt(np.maximum(_box(grey * grey, window) - mean * mean, 0.0))
+
+
 def zncc(a: np.ndarray, mean_a: np.ndarray, std_a: np.ndarray, b: np.ndarray, w: int) -> np.ndarray:
     """Windowed ZNCC (H, W) of images a and b; a's window mean and std given (computed once)."""
     mean_b = _box(b, w)
@@ -107,8 +113,7 @@ def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tup
     w, (h, wd) = params.window, ref_rgb.shape[:2]
     K = intr.matrix()
     a = to_grey_f32(ref_rgb)
-    mean_a = _box(a, w)
-    std_a = np.sqrt(np.maximum(_box(a * a, w) - mean_a * mean_a, 0.0))
+    mean_a, std_a = _box(a, w), local_std(a, w)
     rel = [np.linalg.inv(T) @ T_world_ref for _, T in partners]
     n = plane_count(intr, [float(np.linalg.norm(T[:3, 3])) for T in rel], near, far, params)
     inv_d = np.linspace(1.0 / near, 1.0 / far, n)

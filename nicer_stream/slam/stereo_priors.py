@@ -24,9 +24,9 @@ from nicer_stream.geometry.camera import in_image
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.grey import to_grey_f32
-from nicer_stream.priors.plane_fill import fill_planar_holes, local_std
+from nicer_stream.priors.plane_fill import fill_planar_holes
 from nicer_stream.priors.normals_from_depth import fill_nearest, normals_from_depth
-from nicer_stream.priors.stereo import shrink_depth, sweep_depth
+from nicer_stream.priors.stereo import local_std, shrink_depth, sweep_depth
 from nicer_stream.types import DetailImage, Intrinsics
 
 

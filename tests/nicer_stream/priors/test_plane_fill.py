@@ -1,11 +1,18 @@
 """Filling stereo holes with the plane of their rim: exact on a plane, refused where the rim
 is not one plane, small holes and thin strips left alone."""
 import numpy as np
+import torch
 
-from nicer_stream.priors.plane_fill import camera_rays, fill_planar_holes, fit_plane, local_std
+from nicer_stream.geometry.camera import camera_dirs, pixel_grid
+from nicer_stream.priors.plane_fill import fill_planar_holes, fit_plane
 from nicer_stream.types import Intrinsics
 
 INTR = Intrinsics(fx=100.0, fy=100.0, cx=59.5, cy=39.5, width=120, height=80)
+
+
+def camera_rays(intr):
+    """(H, W, 3) rays with z = 1 of every pixel centre."""
+    return camera_dirs(pixel_grid(intr, dtype=torch.float64), intr).numpy().reshape(intr.height, intr.width, 3)
 
 
 def _plane_depth(n, c):
@@ -57,10 +64,3 @@ def test_only_mostly_untextured_holes_are_filled_when_told_which_pixels_are_blan
     np.testing.assert_array_equal(fill_planar_holes(depth, INTR, blank), depth)  # textured: an occlusion, say
     blank[20:50, 30:60] = True  # 60% of the hole untextured
     np.testing.assert_allclose(fill_planar_holes(depth, INTR, blank), truth, rtol=1e-5)
-
-
-def test_local_std_is_zero_on_flat_grey_and_the_std_of_a_checkerboard():
-    flat = np.full((20, 20), 0.3, np.float32)
-    assert np.abs(local_std(flat, 5)).max() < 1e-4
-    board = (np.indices((20, 20)).sum(0) % 2).astype(np.float32)  # 0 / 1 alternating
-    assert abs(float(local_std(board, 4)[10, 10]) - 0.5) < 1e-4  # an even window: half of each

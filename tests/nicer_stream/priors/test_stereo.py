@@ -3,7 +3,7 @@ textured surfaces, untextured and unseen pixels not confident, the homography by
 import numpy as np
 import pytest
 
-from nicer_stream.priors.stereo import drop_depth_edges, drop_speckles, plane_homography, sweep_depth
+from nicer_stream.priors.stereo import drop_depth_edges, drop_speckles, local_std, plane_homography, sweep_depth
 from nicer_stream.types import Intrinsics
 from sources import open_source
 from sources.base import SourceOptions
@@ -95,3 +95,10 @@ def test_the_speckle_filter_drops_small_islands_and_keeps_large_surfaces():
     ramp = np.tile(np.linspace(1.0, 1.5, 40, dtype=np.float32), (5, 1))
     np.testing.assert_array_equal(drop_speckles(ramp, 150, 0.02), ramp)
     assert (drop_speckles(ramp[:, ::3], 20, 0.02) == 0).all()
+
+
+def test_local_std_is_zero_on_flat_grey_and_the_std_of_a_checkerboard():
+    flat = np.full((20, 20), 0.3, np.float32)
+    assert np.abs(local_std(flat, 5)).max() < 1e-4
+    board = (np.indices((20, 20)).sum(0) % 2).astype(np.float32)  # 0 / 1 alternating
+    assert abs(float(local_std(board, 4)[10, 10]) - 0.5) < 1e-4  # an even window: half of each
