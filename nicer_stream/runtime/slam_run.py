@@ -88,6 +88,12 @@ def mapping_on_worker(req: RunRequest) -> bool:
     return req.mapping_worker == "on" or req.device.startswith("cuda") or available_cores() >= 4
 
 
+def fuses_stereo(cfg: config_mod.SlamConfig, provider: str) -> bool:
+    """Whether the keyframes' monocular depth is fitted to their own plane-sweep stereo
+    (`stereo.mono_fusion`): for every provider that gives depth, i.e. not `none` nor `stereo`."""
+    return cfg.stereo.mono_fusion and provider not in ("none", "stereo")
+
+
 def renders_on_sink_worker(device: str, slam_threads: int) -> bool:
     """Whether the live map renders run on the sink worker (a GPU, or a core the SLAM thread's
     `slam_threads` intra-op threads leave free) or on the SLAM thread. On a CPU with no spare
@@ -138,7 +144,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     slam = SlamSystem(cfg, req.device,
                       progress=None if req.quiet else lambda label: Progress(label, MAPPING_PROGRESS_EVERY_S),
                       stereo=engine.depth_normal.name == "stereo", should_stop=lambda: stop.requested or failed,
-                      mapping=worker)
+                      mapping=worker, fuse_mono=fuses_stereo(cfg, engine.depth_normal.name))
     from sinks import make_sink
 
     sink = make_sink(list(req.sinks)) if req.sinks else None
@@ -274,7 +280,9 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
             if engine.depth_normal.auto_reason:
                 notes.append(engine.depth_normal.auto_reason)
             if engine.depth_normal.description:
-                notes.append(f"priors: {engine.depth_normal.description}")
+                fused = ("; each keyframe's depth fitted to its plane-sweep stereo depth, which it fills "
+                         "(stereo.mono_fusion)" if fuses_stereo(cfg, engine.depth_normal.name) else "")
+                notes.append(f"priors: {engine.depth_normal.description}{fused}")
             if slam.scale_rule:
                 how = slam.init_note or "its shift from the normal prior"
                 notes.append(f"metric scale: first frame's {slam.scale_from} taken as {cfg.loss.first_depth_median_m} m; "

@@ -9,7 +9,11 @@ later partners make a one-sided pair two-sided or a lone partner gets a second. 
 frontend's landmarks, the partners are the frames (keyframes or recent ones) at the baseline
 `stereo.target_baseline` asks for and the sweep covers the landmarks' depths; without them, the
 nearest keyframes over the scene bound's depths. Each pair's relative pose comes from the
-frontend's own poses where it has them (`pair_poses`)."""
+frontend's own poses where it has them (`pair_poses`).
+
+With a monocular provider and `stereo.mono_fusion`, a keyframe's own monocular depth is fitted
+to its stereo depth and fills the stereo's holes (`priors/mono_alignment.py`) instead of the
+planar fill; its normal prior stays the provider's."""
 from __future__ import annotations
 
 import time
@@ -24,6 +28,7 @@ from nicer_stream.geometry.camera import in_image
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.grey import to_grey_f32
+from nicer_stream.priors.mono_alignment import align_depth, fuse_depth
 from nicer_stream.priors.plane_fill import fill_planar_holes
 from nicer_stream.priors.normals_from_depth import fill_nearest, normals_from_depth
 from nicer_stream.priors.stereo import local_std, shrink_depth, sweep_depth
@@ -129,6 +134,9 @@ class StereoPriors:
         self.used: dict[int, tuple[int, ...]] = {}  # keyframe -> partners its prior came from
         self.recent: dict[int, np.ndarray] = {}  # the last `partner_frames` images (H, W, 3), by index
         self.sharp: dict[int, tuple[np.ndarray, Intrinsics]] = {}  # larger grey images to sweep (`max_side`)
+        # keyframe -> its monocular depth prior and (w, q) before fusion (`stereo.mono_fusion`)
+        self.mono: dict[int, tuple[torch.Tensor, tuple[float, float] | None]] = {}
+        self.fixed: set[int] = set()  # frames whose depth prior is in the poses' unit: (w, q) = (1, 0)
         self.seconds = 0.0
 
     def observe(self, index: int, rgb: np.ndarray, detail: DetailImage | None = None) -> None:
@@ -157,10 +165,13 @@ class StereoPriors:
         self.sharp = {i: v for i, v in self.sharp.items() if i in keep}
         candidates = [k for k in keyframes if k in frames and k in poses]
         pool = self._images(frames, candidates, poses)
+        self.mono = {i: d for i, d in self.mono.items() if i in keep or i in frames}
         done = []
         for k in window:
             if k not in frames or k not in poses:
                 continue
+            if k not in self.used and frames[k].depth_prior is not None:
+                self.mono.setdefault(k, (frames[k].depth_prior, frames[k].depth_scale_shift))
             images = {i: rgb for i, rgb in pool.items() if i != k and rgb.shape == tuple(frames[k].rgb.shape)}
             partners = self._partners(k, images, poses, frames[k].intr, landmarks)
             partners = partners or partners_of(k, [c for c in candidates if c != k])
@@ -217,9 +228,36 @@ class StereoPriors:
         else:
             depth = sweep_depth(sharp[0], T, partners, sharp[1], near, far, self.params)
             depth = shrink_depth(depth, f.intr.width, f.intr.height)
+        mono = self.mono.get(f.index)
+        if mono is not None:
+            self._fuse(f, depth, mono)
+            return
         if self.params.fill_min_inliers > 0:
             blank = local_std(to_grey_f32(f.rgb.cpu().numpy()), self.params.window) < self.params.fill_max_texture
             depth = fill_planar_holes(depth, f.intr, blank, min_inliers=self.params.fill_min_inliers)
         f.depth_prior = torch.as_tensor(depth, device=f.rgb.device)
         f.normal_prior = torch.as_tensor(stereo_normals(depth, f.intr), device=f.rgb.device) if self.params.normals else None
         f.depth_scale_shift = (1.0, 0.0) if self.params.scale == "fixed" else None
+        self._mark(f.index, self.params.scale == "fixed")
+
+    def _fuse(self, f: MapFrame, depth: np.ndarray, mono: tuple[torch.Tensor, tuple[float, float] | None]) -> None:
+        """f's monocular depth `mono` ((H, W) prior, its (w, q)) fitted to its stereo `depth`
+        (H, W, 0 where unknown) and filling its holes; where the fit fails (too little stereo
+        depth) f keeps its monocular prior and (w, q)."""
+        prior = mono[0].cpu().numpy()
+        if prior.shape != depth.shape:
+            prior = cv2.resize(prior, depth.shape[::-1], interpolation=cv2.INTER_LINEAR)
+        aligned = align_depth(prior, depth, self.params.mono_cells, self.params.mono_smooth)
+        if aligned is None:
+            f.depth_prior, f.depth_scale_shift = mono
+            self._mark(f.index, False)
+            return
+        f.depth_prior = torch.as_tensor(fuse_depth(depth, aligned, self.params.mono_max_rel), device=f.rgb.device)
+        f.depth_scale_shift = (1.0, 0.0)
+        self._mark(f.index, True)
+
+    def _mark(self, index: int, fixed: bool) -> None:
+        if fixed:
+            self.fixed.add(index)
+        else:
+            self.fixed.discard(index)

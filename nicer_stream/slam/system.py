@@ -67,7 +67,7 @@ class SlamSystem:
     def __init__(self, cfg: SlamConfig, device: str = "cpu",
                  progress: Callable[[str], MappingProgress | None] | None = None,
                  stereo: bool = False, should_stop: Callable[[], bool] | None = None,
-                 mapping: MappingExecutor | None = None) -> None:
+                 mapping: MappingExecutor | None = None, fuse_mono: bool = False) -> None:
         if cfg.loss.slam_prior_alignment not in ("lstsq", "map", "flow"):
             raise UserError(f"loss.slam_prior_alignment must be lstsq, map or flow, got {cfg.loss.slam_prior_alignment!r}")
         if cfg.tracking.init not in ("previous", "constant_velocity", "flow"):
@@ -87,8 +87,10 @@ class SlamSystem:
         if cfg.stereo.scale not in ("fixed", "fit"):
             raise UserError(f"stereo.scale must be fixed or fit, got {cfg.stereo.scale!r}")
         self.cfg, self.device = cfg, torch.device(device)
-        # `--priors stereo`: keyframe depth/normal priors by plane sweep before each mapping call.
-        self.stereo = StereoPriors(cfg.stereo) if stereo else None
+        # `--priors stereo`: keyframe depth/normal priors by plane sweep before each mapping call;
+        # `fuse_mono` (a monocular provider with `stereo.mono_fusion`): the sweep's depth with the
+        # provider's fitted to it.
+        self.stereo = StereoPriors(cfg.stereo) if stereo or fuse_mono else None
         self.progress = progress
         # Polled by mapping iterations and between the held frames of the two-view start:
         # a stop request ends them early (the caller then writes what exists).
@@ -119,7 +121,7 @@ class SlamSystem:
         self.init_note = ""
         self.scale_from = "depth-prior median"  # what `first_depth_median_m` sets: the first frame's ...
         # 'auto': the frontend where the depth prior needs good poses (stereo) or starts the SLAM.
-        use = cfg.tracking.frontend == "classical" or (cfg.tracking.frontend == "auto" and stereo)
+        use = cfg.tracking.frontend == "classical" or (cfg.tracking.frontend == "auto" and self.stereo is not None)
         self.frontend = ClassicalFrontend(cfg.frontend) if use else None
         self.frontend_seconds = 0.0
         self._fview = None  # (frame index, frontend two-view result) of the start without priors
@@ -580,7 +582,7 @@ class SlamSystem:
         (the widest-baseline partner it has a flow to); frames without one keep the fit."""
         for k in window:
             f = self.frames[k]
-            if self.stereo is not None and k in self.stereo.used and self.stereo.params.scale == "fixed":
+            if self.stereo is not None and k in self.stereo.fixed:
                 continue  # stereo depth is in the poses' unit already: (1, 0)
             wq = align_to_widest_partner(f, self.frames, self.poses)
             f.depth_scale_shift = wq if wq is not None else f.depth_scale_shift
