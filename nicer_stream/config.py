@@ -444,7 +444,7 @@ class StereoConfig:
     6.7 / 6.8 cm, 1e-5: 7.4 / 7.2 cm."""
     mono_max_rel: float = 0.1
     """Stereo depth more than this share away from the fitted monocular depth is replaced by
-    it (`fuse_depth`: stereo's gross errors). Replica, GT poses, oracle seeds 0 / 1: none
+    it (`fuse_depth`: stereo's gross errors); 0: off. Replica, GT poses, oracle seeds 0 / 1: none
     (stereo kept wherever known): 6.65 / 6.83 cm; 0.05: 6.58 / 6.73; 0.1: 6.36 / 6.55; 0.2:
     6.53 / 6.72. `oracle:clean`, seed 0: 5.01 -> 4.41 cm at 0.1."""
 

@@ -66,7 +66,7 @@ def main() -> None:
         A = np.stack([mono[valid], np.ones(int(valid.sum()))], 1)
         w, q = np.linalg.lstsq(A, gt[valid], rcond=None)[0]
         out = {"stereo": l1(d),
-               "stereo + planar fill (`--priors stereo`)": l1(fill_planar_holes(d, f.intrinsics, blank, params.fill_min_inliers)),
+               "stereo + planar fill (`--priors stereo`)": l1(fill_planar_holes(d, f.intrinsics, blank, min_inliers=params.fill_min_inliers)),
                "prior, its best affine fit to GT": l1(w * mono + q)}
         for c in a.cells:
             aligned = align_depth(mono, d, c, a.smooth)

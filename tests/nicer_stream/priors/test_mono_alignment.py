@@ -80,6 +80,7 @@ def test_fusion_keeps_the_metric_depth_near_the_fit_and_fills_the_rest():
     # kept (5% off), filled, replaced (25% off) / unknown on both, kept, kept (no fit there)
     np.testing.assert_array_equal(fuse_depth(metric, aligned), [[1.0, 3.0, 2.5], [np.nan, 2.0, 3.0]])
     np.testing.assert_array_equal(fuse_depth(metric, aligned, max_rel=0.3)[0], [1.0, 3.0, 2.0])
+    np.testing.assert_array_equal(fuse_depth(metric, aligned, max_rel=0)[0], [1.0, 3.0, 2.0])  # off
 
 
 def test_the_realistic_oracle_fitted_to_textured_gt_pixels_beats_its_affine_fit_on_the_rest(replica_dir):
