@@ -101,8 +101,8 @@ def fuse_depth(metric: np.ndarray, aligned: np.ndarray, max_rel: float = 0.1) ->
     """(H, W) metric depth (0 where unknown) with its holes filled from `aligned` (H, W; NaN
     stays unknown), and its pixels more than `max_rel` of `aligned` away from it replaced by
     it: there the stereo is most likely one of its gross errors (a window across a depth edge,
-    a repeated texture) rather than the fit off by that much (Replica, GT poses, realistic
-    oracle seeds 0 / 1: L1 6.65 / 6.83 cm -> 6.36 / 6.55 cm at 0.1; 0.05 and 0.2 in between).
+    a repeated texture) rather than the fit off by that much (`StereoConfig.mono_max_rel` has
+    the measurements).
     max_rel <= 0 keeps every known metric pixel."""
     known = metric > 0
     agree = known & ((np.abs(metric - aligned) <= max_rel * aligned) | (max_rel <= 0))
