@@ -32,6 +32,8 @@ def test_run_writes_the_output_contract(tmp_path, tiny_config, capsys):
     assert summary["stats"]["tracking_s_per_frame"] > 0 and summary["stats"]["mapping_s_per_frame"] > 0
     assert summary["bound"]["source"] == "depth_prior"
     assert any("two-view" in n for n in summary["notes"])
+    # `fast` fits the monocular prior to the keyframes' stereo, and says so.
+    assert any(n.startswith("priors: oracle") and "stereo.mono_fusion" in n for n in summary["notes"])
     assert (tmp_path / "rec.rrd").stat().st_size > 0
     assert any((out / od.RENDERS_DIR).glob("*.npz"))
     # One progress line per frame; replayed held frames show their own tracking time.
