@@ -3,7 +3,7 @@ against the frames 5 before and after it (3 on the missing side at the ends) at 
 averaged to 320 px, and the `oracle` prior (realistic, or `--clean`) fitted to that depth.
 Prints the depth L1 against GT (cm) and the share of pixels with a depth, per keyframe.
 
-    .venv/bin/python scripts/mono_fusion_replay.py [--seed 0] [--clean] [--cells 5 7 9] [--smooth 1e-4] [--max-rel 0.1]
+    .venv/bin/python scripts/mono_fusion_replay.py [--seed 0] [--clean | --field-cells 4] [--cells 5 7 9] [--smooth 1e-4] [--max-rel 0.1]
 """
 from __future__ import annotations
 
@@ -37,10 +37,12 @@ def main() -> None:
     ap.add_argument("--cells", type=int, nargs="+", default=[StereoConfig.mono_cells])
     ap.add_argument("--smooth", type=float, default=StereoConfig.mono_smooth)
     ap.add_argument("--max-rel", type=float, nargs="+", default=[StereoConfig.mono_max_rel])
+    ap.add_argument("--field-cells", type=int, default=OracleCorruption.field_cells,
+                    help="cells of the realistic oracle's distortion field (finer: a harder prior)")
     a = ap.parse_args()
     frames = list(open_source(a.source, SourceOptions(max_side=320, detail_side=1200)))
     params = StereoConfig()
-    oracle = OracleDepthNormal(a.seed, OracleCorruption.clean() if a.clean else OracleCorruption())
+    oracle = OracleDepthNormal(a.seed, OracleCorruption.clean() if a.clean else OracleCorruption(field_cells=a.field_cells))
     rows: dict[str, list[tuple[float, float]]] = {}
     for k in KEYFRAMES:
         f = frames[k]
@@ -75,7 +77,8 @@ def main() -> None:
                 out[f"fused, {c} cells, max_rel {r:g}"] = l1(fuse_depth(d, aligned, r))
         for name, v in out.items():
             rows.setdefault(name, []).append(v)
-    print(f"| {'depth (seed %d%s)' % (a.seed, ', clean' if a.clean else '')} | "
+    what = "clean" if a.clean else f"field over {a.field_cells} cells"
+    print(f"| depth (seed {a.seed}, {what}) | "
           + " | ".join(f"kf {k}" for k in KEYFRAMES) + " | mean |")
     print("|---" * (len(KEYFRAMES) + 2) + "|")
     for name, vs in rows.items():

@@ -97,11 +97,15 @@ def test_decayed_lr_runs_geometrically_from_lr_to_lr_times_decay():
 def test_a_decaying_rate_scatters_less_over_pixel_draws(fitted):
     """Near the optimum Adam's steps stay ~lr long, each on fresh pixels: the final pose scatters
     with the pixel draw (the tracker's seed). Ending on a small rate scatters less, and the poses
-    still end near the GT pose they start at."""
+    still end near the GT pose they start at. On this small map the gain is modest and varies with
+    the draws: decayed / constant spread 0.35-0.82 over six draws in five states of torch's global
+    generator (the renders' jitter), 0.65-0.90 over sixteen; it was asserted below 0.7 until an
+    order of the tests gave 0.82. Now the generator is seeded here and the claim is the direction."""
     cfg, frames, mfs, poses, model, beta = fitted
     T_gt = poses[frames[4].index]
 
     def spread(**kw):
+        torch.manual_seed(0)  # the renders' jitter draws from torch's global generator: not from what ran before
         tc = replace(cfg.tracking, iters=30, keep="last", **kw)
         ts = torch.stack([Tracker(model, beta, tc, cfg.render, seed=s).track(mfs[4], T_gt).T_world_cam[:3, 3]
                           for s in range(6)])
@@ -109,5 +113,5 @@ def test_a_decaying_rate_scatters_less_over_pixel_draws(fitted):
 
     const, decayed = spread(), spread(lr_decay=0.05)
     print("spread, mean error: constant", const, "decay 0.05", decayed)
-    assert decayed[0] < 0.7 * const[0]
+    assert decayed[0] < const[0]
     assert decayed[1] < 0.01
