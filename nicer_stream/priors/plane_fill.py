@@ -2,10 +2,14 @@
 
 Window matching finds nothing on a blank wall or ceiling, and those are the largest surfaces of
 a room: left without a depth prior, the map guesses them from colour alone (the Replica clip's
-white wall: 20-30 cm off). Most such holes are bounded by a single plane (the wall they belong
-to): the known depths on the hole's rim, back-projected, fit one plane, and the hole is filled
-by intersecting its rays with it. A rim that does not lie on one plane (a hole between a
-foreground object and the wall behind it, a curved surface) is left unfilled.
+white wall: 20-30 cm off). Such a hole is bounded by the walls it belongs to: the known depths
+on the hole's rim, back-projected, fit up to `max_planes` planes (sequential RANSAC), and each
+hole pixel takes the nearest of them along its ray. Seen from inside a room, every visible
+point lies on the camera's side of every wall plane, so a plane that a share of the rim lies
+behind is not a wall bounding the hole (it is a foreground surface) and is not used; two walls
+meeting in a corner are both kept, and the nearer one is the visible one. A rim that these
+planes do not explain (a hole between a foreground object and the wall behind it, a curved
+surface) is left unfilled.
 """
 from __future__ import annotations
 
@@ -17,38 +21,73 @@ from nicer_stream.geometry.camera import camera_dirs, pixel_grid
 from nicer_stream.types import Intrinsics
 
 
-def fit_plane(points: np.ndarray, tol: float, rng: np.random.Generator, tries: int = 64) -> tuple[np.ndarray, float, float]:
-    """RANSAC plane through (N, 3) camera points: (unit normal n (3,), offset c with n.x = c,
-    inlier share). A point is an inlier within `tol` times its own depth (z) of the plane."""
-    best = (np.array([0.0, 0.0, 1.0]), 0.0, 0.0)
-    for _ in range(tries):
-        a, b, c = points[rng.choice(len(points), 3, replace=False)]
-        n = np.cross(b - a, c - a)
-        norm = np.linalg.norm(n)
-        if norm < 1e-12:
-            continue
-        n = n / norm
-        share = float((np.abs(points @ n - n @ a) <= tol * points[:, 2]).mean())
-        if share > best[2]:
-            best = (n, float(n @ a), share)
-    n, c, _ = best
-    inliers = np.abs(points @ n - c) <= tol * points[:, 2]
-    if inliers.sum() >= 3:  # least squares on the inliers: the plane through their centroid
-        q = points[inliers]
-        centre = q.mean(0)
-        n = np.linalg.svd(q - centre, full_matrices=False)[2][-1]
-        c = float(n @ centre)
-        inliers = np.abs(points @ n - c) <= tol * points[:, 2]
-    return n, c, float(inliers.mean())
+def fit_wall_planes(points: np.ndarray, tol: float, rng: np.random.Generator, max_planes: int = 3,
+                    min_share: float = 0.2, max_behind: float = 0.1, tries: int = 128) -> tuple[list[tuple[np.ndarray, float]], float]:
+    """Sequential RANSAC over (N, 3) camera points (the camera at the origin): up to `max_planes`
+    planes (unit n (3,), c > 0) with n.x = c, each taking at least `min_share` of the points as
+    new inliers (within `tol` times a point's z) and with at most `max_behind` of all points beyond
+    it (n.x - c > tol z: behind the plane, seen from the camera). Returns the planes and the share
+    of the points on one of them."""
+    z = points[:, 2]
+    free = np.ones(len(points), bool)
+    planes: list[tuple[np.ndarray, float]] = []
+
+    def orient(n, c):  # the camera's side of the plane is n.x < c
+        return (-n, -c) if c < 0 else (n, c)
+
+    for _ in range(max_planes):
+        idx = np.flatnonzero(free)
+        if len(idx) < 3:
+            break
+        best, best_count = None, 0
+        for _ in range(tries):
+            a, b, c = points[rng.choice(idx, 3, replace=False)]
+            n = np.cross(b - a, c - a)
+            norm = np.linalg.norm(n)
+            if norm < 1e-12:
+                continue
+            n, off = orient(n / norm, float(n @ a) / norm)
+            dist = points @ n - off
+            if (dist > tol * z).mean() > max_behind:
+                continue
+            count = int(((np.abs(dist) <= tol * z) & free).sum())
+            if count > best_count:
+                best, best_count = (n, off), count
+        if best is None or best_count < min_share * len(points):
+            break
+        planes.append(best)
+        free &= ~(np.abs(points @ best[0] - best[1]) <= tol * z)
+    # Least squares on each plane's points, a point going to the plane it lies nearest (two walls'
+    # points near their corner are within `tol` of both); a refit that puts points behind stays out.
+    for _ in range(2):
+        if not planes:
+            break
+        dist = np.stack([np.abs(points @ n - c) / z for n, c in planes])
+        owner = np.where(dist.min(0) <= tol, dist.argmin(0), -1)
+        for k in range(len(planes)):
+            mine = points[owner == k]
+            if len(mine) < 3:
+                continue
+            centre = mine.mean(0)
+            m = np.linalg.svd(mine - centre, full_matrices=False)[2][-1]
+            m, d = orient(m, float(m @ centre))
+            if ((points @ m - d) > tol * z).mean() <= max_behind:
+                planes[k] = (m, d)
+    if not planes:
+        return planes, 0.0
+    return planes, float((np.stack([np.abs(points @ n - c) / z for n, c in planes]).min(0) <= tol).mean())
 
 
 def fill_planar_holes(depth: np.ndarray, intr: Intrinsics, blank: np.ndarray | None = None, min_area: float = 0.01,
-                      rim: int = 4, tol: float = 0.02, min_inliers: float = 0.7, seed: int = 0) -> np.ndarray:
+                      rim: int = 4, tol: float = 0.03, min_inliers: float = 0.7, max_planes: int = 1,
+                      min_share: float = 0.2, max_behind: float = 0.1, seed: int = 0) -> np.ndarray:
     """(H, W) z-depth with 0 where unknown -> the same with each hole (connected unknown region
-    wider than 2 `rim` + 1 pixels, of at least `min_area` of the image) filled by the plane its rim fits: the known pixels
-    within `rim` pixels of the hole, back-projected, fit one plane (RANSAC, inlier within `tol`
-    of the depth) with at least `min_inliers` of them. Holes whose plane is not in front of the
-    camera for every hole pixel, or that reach more than twice the rim's depth, stay unknown.
+    wider than 2 `rim` + 1 pixels, of at least `min_area` of the image) filled from the walls its
+    rim lies on: the known pixels within `rim` pixels of the hole, back-projected, fit up to
+    `max_planes` planes (`fit_wall_planes`: inliers within `tol` of the depth, each at least
+    `min_share` of the rim, at most `max_behind` of the rim behind it) that hold at least
+    `min_inliers` of the rim together; a hole pixel takes the nearest plane in front of the camera
+    along its ray (left unknown where none is, or beyond twice the rim's farthest depth).
     `blank` (H, W) bool marks untextured pixels: then only holes mostly (half or more) blank are
     filled. Why: holes left by occlusions or disagreeing partners are textured, and their rim
     often is one plane while the hole holds another surface (the synthetic room's gaps between
@@ -72,13 +111,13 @@ def fill_planar_holes(depth: np.ndarray, intr: Intrinsics, blank: np.ndarray | N
         ring = cv2.dilate(hole.astype(np.uint8), kernel).astype(bool) & known
         if ring.sum() < 30:
             continue
-        points = rays[ring] * depth[ring][:, None]
-        n, c, share = fit_plane(points, tol, rng)
-        if share < min_inliers:
+        planes, share = fit_wall_planes(rays[ring] * depth[ring][:, None], tol, rng, max_planes, min_share, max_behind)
+        if not planes or share < min_inliers:
             continue
-        along = rays[hole] @ n  # z = c / (n . ray) on the plane
-        z = np.where(np.abs(along) > 1e-9, c / np.where(np.abs(along) > 1e-9, along, 1.0), -1.0)
-        if (z <= 0).any() or z.max() > 2.0 * float(depth[ring].max()):
-            continue
+        z = np.full(int(hole.sum()), np.inf)
+        for n, c in planes:  # c > 0: a ray meets the plane in front of the camera where n . ray > 0
+            along = rays[hole] @ n
+            z = np.minimum(z, np.where(along > 1e-9, c / np.maximum(along, 1e-9), np.inf))
+        z[~np.isfinite(z) | (z > 2.0 * float(depth[ring].max()))] = 0.0
         out[hole] = z
     return out.astype(np.float32)

@@ -234,7 +234,8 @@ class StereoPriors:
             return
         if self.params.fill_min_inliers > 0:
             blank = local_std(to_grey_f32(f.rgb.cpu().numpy()), self.params.window) < self.params.fill_max_texture
-            depth = fill_planar_holes(depth, f.intr, blank, min_inliers=self.params.fill_min_inliers)
+            depth = fill_planar_holes(depth, f.intr, blank, min_inliers=self.params.fill_min_inliers,
+                                      max_planes=self.params.fill_planes)
         f.depth_prior = torch.as_tensor(depth, device=f.rgb.device)
         f.normal_prior = torch.as_tensor(stereo_normals(depth, f.intr), device=f.rgb.device) if self.params.normals else None
         f.depth_scale_shift = (1.0, 0.0) if self.params.scale == "fixed" else None
