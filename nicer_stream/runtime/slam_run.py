@@ -280,8 +280,10 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
             if engine.depth_normal.auto_reason:
                 notes.append(engine.depth_normal.auto_reason)
             if engine.depth_normal.description:
-                fused = ("; each keyframe's depth fitted to its plane-sweep stereo depth, which it fills "
-                         "(stereo.mono_fusion)" if fuses_stereo(cfg, engine.depth_normal.name) else "")
+                fused = ""
+                if fuses_stereo(cfg, engine.depth_normal.name) and slam.stereo is not None:
+                    fused = ("; each keyframe's depth fitted to its plane-sweep stereo depth, which it fills "
+                             f"(stereo.mono_fusion): {slam.stereo.fusion_note()}")
                 notes.append(f"priors: {engine.depth_normal.description}{fused}")
             if slam.scale_rule:
                 how = slam.init_note or "its shift from the normal prior"

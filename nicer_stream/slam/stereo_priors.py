@@ -137,6 +137,8 @@ class StereoPriors:
         # keyframe -> its monocular depth prior and (w, q) before fusion (`stereo.mono_fusion`)
         self.mono: dict[int, tuple[torch.Tensor, tuple[float, float] | None]] = {}
         self.fixed: set[int] = set()  # frames whose depth prior is in the poses' unit: (w, q) = (1, 0)
+        # keyframe -> whether its monocular prior was fitted to its stereo (False: the fit failed)
+        self.fused: dict[int, bool] = {}
         self.seconds = 0.0
 
     def observe(self, index: int, rgb: np.ndarray, detail: DetailImage | None = None) -> None:
@@ -249,6 +251,7 @@ class StereoPriors:
         if prior.shape != depth.shape:
             prior = cv2.resize(prior, depth.shape[::-1], interpolation=cv2.INTER_LINEAR)
         aligned = align_depth(prior, depth, self.params.mono_cells, self.params.mono_smooth)
+        self.fused[f.index] = aligned is not None
         if aligned is None:
             f.depth_prior, f.depth_scale_shift = mono
             self._mark(f.index, False)
@@ -256,6 +259,14 @@ class StereoPriors:
         f.depth_prior = torch.as_tensor(fuse_depth(depth, aligned, self.params.mono_max_rel), device=f.rgb.device)
         f.depth_scale_shift = (1.0, 0.0)
         self._mark(f.index, True)
+
+    def fusion_note(self) -> str:
+        """How many keyframes' monocular priors were fitted to their stereo, for the run's summary."""
+        n, ok = len(self.fused), sum(self.fused.values())
+        if n == 0:
+            return "no keyframe was swept"
+        kept = f"; {n - ok} kept the monocular prior alone (too little stereo depth)" if ok < n else ""
+        return f"{ok} of {n} keyframes{kept}"
 
     def _mark(self, index: int, fixed: bool) -> None:
         if fixed:

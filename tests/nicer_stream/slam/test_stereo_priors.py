@@ -103,6 +103,12 @@ def test_a_monocular_prior_is_fitted_to_the_keyframes_stereo_and_fills_its_holes
     d = f.depth_prior.numpy()
     assert f.depth_scale_shift == (1.0, 0.0) and 5 in sp.fixed
     assert f.normal_prior is normal
+    assert sp.fusion_note() == "1 of 1 keyframes"
+    # A keyframe whose sweep found (almost) nothing keeps its monocular prior and (w, q), and the note says so.
+    g = frames[10]
+    sp._fuse(g, np.zeros(tuple(g.depth_prior.shape), np.float32), (g.depth_prior.clone(), (2.0, 0.1)))
+    assert g.depth_scale_shift == (2.0, 0.1) and 10 not in sp.fixed
+    assert sp.fusion_note() == "1 of 2 keyframes; 1 kept the monocular prior alone (too little stereo depth)"
     ok = gt > 0
     assert np.isfinite(d[ok]).all() and (d[ok] > 0).all()  # no holes left
     m = mono.numpy()
