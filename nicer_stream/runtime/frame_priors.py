@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import torch
 
+from nicer_stream.config import SlamConfig
 from nicer_stream.errors import UserError
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.priors import PriorEngine, make_depth_normal_provider, make_flow_provider
@@ -27,3 +28,9 @@ def map_frame(frame: Frame, engine: PriorEngine, flow_to: list[Frame], device) -
     except UserError:
         raise
     return MapFrame.from_frame(frame.without_ground_truth(), pri, torch.device(device))
+
+
+def fuses_stereo(cfg: SlamConfig, provider: str) -> bool:
+    """Whether the keyframes' monocular depth is fitted to their own plane-sweep stereo
+    (`stereo.mono_fusion`): for every provider that gives depth, i.e. not `none` nor `stereo`."""
+    return cfg.stereo.mono_fusion and provider not in ("none", "stereo")

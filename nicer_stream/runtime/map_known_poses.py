@@ -20,13 +20,14 @@ from nicer_stream.runtime.matmul_backend import enable_onednn_matmul
 from nicer_stream.io.scene_file import save_scene
 from nicer_stream.model.bound import SceneBound, bound_from_points
 from nicer_stream.model.bound_estimate import bound_from_cameras, bound_from_config, metric_points
-from nicer_stream.runtime.frame_priors import make_engine, map_frame, provider_names
+from nicer_stream.runtime.frame_priors import fuses_stereo, make_engine, map_frame, provider_names
 from nicer_stream.runtime.progress import Progress
 from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_trajectory
 from nicer_stream.runtime.scene_export import save_render, scene_mesh
 from nicer_stream.runtime.stage_timer import StageTimer
 from nicer_stream.render.renderer import render_image
 from nicer_stream.runtime.source_setup import intrinsics_dict, open_configured
+from nicer_stream.slam.stereo_priors import StereoPriors
 from sources.base import SourceOptions
 
 log = logging.getLogger(__name__)
@@ -75,11 +76,8 @@ def _align_priors(mfs, poses) -> dict[int, tuple[float, float]]:
     return aligned
 
 
-def _bound(cfg, mfs, aligned, poses, poses_np) -> SceneBound:
-    """Config bound, else the metric-aligned priors' points (every 4th pixel of every frame)
-    with the configured margin, else a cube in front of the cameras."""
-    if cfg.bound.mode == "config":
-        return bound_from_config(cfg.bound)
+def _metric_points(cfg, mfs, aligned, poses) -> np.ndarray | None:
+    """(P, 3) world points of the metric-aligned priors (every 4th pixel of every aligned frame)."""
     pts = []
     for m in mfs:
         if m.index not in aligned:
@@ -88,9 +86,29 @@ def _bound(cfg, mfs, aligned, poses, poses_np) -> SceneBound:
         depth = ((m.depth_prior - q) / w)[::4, ::4]
         sub = m.intr.resized(depth.shape[1], depth.shape[0])
         pts.append(metric_points(depth.cpu().numpy(), sub, poses[m.index].double().cpu().numpy(), cfg.bound))
-    if not pts:
+    return np.concatenate(pts) if pts else None
+
+
+def _bound(cfg, points: np.ndarray | None, poses_np) -> SceneBound:
+    """Config bound, else the metric-aligned priors' `points` with the configured margin, else a
+    cube in front of the cameras."""
+    if cfg.bound.mode == "config":
+        return bound_from_config(cfg.bound)
+    if points is None:
         return bound_from_cameras(poses_np, cfg.bound)
-    return bound_from_points(np.concatenate(pts), cfg.bound.margin, "depth_prior")
+    return bound_from_points(points, cfg.bound.margin, "depth_prior")
+
+
+def _fuse_stereo(cfg, frames, mfs, poses, bound: SceneBound, points: np.ndarray | None) -> StereoPriors:
+    """`stereo.mono_fusion` as the SLAM does it, with the known poses: every frame swept against
+    partners chosen by baseline (the metric-aligned priors' `points` standing in for the
+    frontend's landmarks), its monocular depth fitted to that depth and filling its holes."""
+    sp = StereoPriors(cfg.stereo)
+    for f in frames:
+        sp.observe(f.index, f.rgb, f.detail)
+    index = [m.index for m in mfs]
+    sp.update(index, {m.index: m for m in mfs}, poses, index, bound, points)
+    return sp
 
 
 def run_map(req: MapRequest) -> Path:
@@ -101,24 +119,32 @@ def run_map(req: MapRequest) -> Path:
     torch.manual_seed(cfg.seed)
     retain_freed_memory()
     enable_onednn_matmul()
-    source, _ = open_configured(req.source, req.source_opts, cfg, tracking=False)
+    engine = make_engine(req.priors, req.flow, req.device)
+    fuse = fuses_stereo(cfg, engine.depth_normal.name)
+    # The frontend's larger images are the sweeps' too (`Frame.detail`).
+    source, _ = open_configured(req.source, req.source_opts, cfg, tracking=fuse)
     frames = list(source)
     if not frames:
         raise UserError(f"source {req.source} gave no frames")
     poses_np = _poses(frames, req.poses)
     out = Path(req.out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    engine = make_engine(req.priors, req.flow, req.device)
     with timer.stage("priors"):
         # Flows to frames 2 and 5 steps away (both ways): parallax large enough to constrain depth.
         mfs = [map_frame(f, engine, [frames[j] for j in (i - 5, i - 2, i + 2, i + 5) if 0 <= j < len(frames)], req.device)
                for i, f in enumerate(frames)]
     poses = {f.index: torch.tensor(poses_np[i], dtype=torch.float32, device=req.device) for i, f in enumerate(frames)}
     aligned = _align_priors(mfs, poses)
-    bound = _bound(cfg, mfs, aligned, poses, poses_np)
+    points = _metric_points(cfg, mfs, aligned, poses) if cfg.bound.mode != "config" or fuse else None
+    bound = _bound(cfg, points, poses_np)
     if cfg.loss.metric_prior_alignment:
         for m in mfs:
             m.depth_scale_shift = aligned.get(m.index)
+    stereo = None
+    if fuse:
+        print(f"fitting the {len(mfs)} frames' depth priors to their plane-sweep stereo (stereo.mono_fusion)", flush=True)
+        with timer.stage("priors"):
+            stereo = _fuse_stereo(cfg, frames, mfs, poses, bound, points)
     model = SceneModel(cfg.model, bound).to(req.device)
     beta = BetaField(cfg.render).to(req.device)
     iters = req.iters or cfg.mapping.batch_iters
@@ -148,7 +174,9 @@ def run_map(req: MapRequest) -> Path:
         interrupted=interrupted, bound=bound, source=req.source,
         notes=[f"mapping with known poses ({req.poses}); scene bound from {bound.source}",
                f"depth prior aligned to metres by flow triangulation on {len(aligned)}/{len(mfs)} frames"
-               + ("" if cfg.loss.metric_prior_alignment else " (for the bound only; the depth loss refits scale and shift)")],
+               + ("" if cfg.loss.metric_prior_alignment else " (for the bound only; the depth loss refits scale and shift)")]
+        + ([f"each frame's depth fitted to its plane-sweep stereo depth, which it fills (stereo.mono_fusion): "
+            f"{stereo.fusion_note().replace('keyframes', 'frames')}"] if stereo is not None else []),
         intrinsics=intrinsics_dict(intr),
         config=config_mod.to_dict(cfg),
         stats={"iterations": stats.iters if stats else 0, "final_loss": stats.loss if stats else None,

@@ -15,7 +15,7 @@ from nicer_stream.errors import UserError, one_line
 from nicer_stream.runtime.allocator import retain_freed_memory
 from nicer_stream.runtime.matmul_backend import enable_onednn_matmul
 from nicer_stream.io.scene_file import save_scene
-from nicer_stream.runtime.frame_priors import make_engine, provider_names
+from nicer_stream.runtime.frame_priors import fuses_stereo, make_engine, provider_names
 from nicer_stream.runtime.live_outputs import MESH_RESOLUTION, LiveMapOutputs, coarse_mesh
 from nicer_stream.runtime.frame_reader import ReadAhead
 from nicer_stream.runtime.mapping_thread import MappingThread, available_cores, split_threads
@@ -86,12 +86,6 @@ def mapping_on_worker(req: RunRequest) -> bool:
     if req.sync or req.mapping_worker == "off":
         return False
     return req.mapping_worker == "on" or req.device.startswith("cuda") or available_cores() >= 4
-
-
-def fuses_stereo(cfg: config_mod.SlamConfig, provider: str) -> bool:
-    """Whether the keyframes' monocular depth is fitted to their own plane-sweep stereo
-    (`stereo.mono_fusion`): for every provider that gives depth, i.e. not `none` nor `stereo`."""
-    return cfg.stereo.mono_fusion and provider not in ("none", "stereo")
 
 
 def renders_on_sink_worker(device: str, slam_threads: int) -> bool:

@@ -79,7 +79,7 @@ def test_a_monocular_prior_is_fitted_to_the_keyframes_stereo_and_fills_its_holes
     poses' unit, closer to GT than the prior after its best affine fit; the provider's normals
     stay; a recomputation starts again from the provider's depth, not from the fused one."""
     from nicer_stream.priors.oracle import OracleDepthNormal
-    from nicer_stream.runtime.slam_run import fuses_stereo
+    from nicer_stream.runtime.frame_priors import fuses_stereo
     from nicer_stream.config import fast, paper
     from nicer_stream.types import Priors
 
