@@ -3,7 +3,7 @@ against the frames 5 before and after it (3 on the missing side at the ends) at 
 averaged to 320 px, and the `oracle` prior (realistic, or `--clean`) fitted to that depth.
 Prints the depth L1 against GT (cm) and the share of pixels with a depth, per keyframe.
 
-    .venv/bin/python scripts/mono_fusion_replay.py [--seed 0] [--clean | --field-cells 4] [--cells 5 7 9] [--smooth 1e-4] [--max-rel 0.1]
+    .venv/bin/python scripts/mono_fusion_replay.py [--seed 0] [--clean | --field-cells 4] [--cells 5 7 9] [--smooth 1e-4] [--max-rel 0.1] [--spread 0 3]
 """
 from __future__ import annotations
 
@@ -37,6 +37,8 @@ def main() -> None:
     ap.add_argument("--cells", type=int, nargs="+", default=[StereoConfig.mono_cells])
     ap.add_argument("--smooth", type=float, default=StereoConfig.mono_smooth)
     ap.add_argument("--max-rel", type=float, nargs="+", default=[StereoConfig.mono_max_rel])
+    ap.add_argument("--spread", type=float, nargs="+", default=[StereoConfig.mono_veto_spread],
+                    help="the veto's share at least this many robust spreads of the stereo around the fit (0: off)")
     ap.add_argument("--field-cells", type=int, default=OracleCorruption.field_cells,
                     help="cells of the realistic oracle's distortion field (finer: a harder prior)")
     a = ap.parse_args()
@@ -74,7 +76,8 @@ def main() -> None:
             aligned = align_depth(mono, d, c, a.smooth)
             out[f"prior fitted to stereo ({c} cells), alone"] = l1(aligned)
             for r in a.max_rel:
-                out[f"fused, {c} cells, max_rel {r:g}"] = l1(fuse_depth(d, aligned, r))
+                for k in a.spread:
+                    out[f"fused, {c} cells, max_rel {r:g}, spread {k:g}"] = l1(fuse_depth(d, aligned, r, k))
         for name, v in out.items():
             rows.setdefault(name, []).append(v)
     what = "clean" if a.clean else f"field over {a.field_cells} cells"

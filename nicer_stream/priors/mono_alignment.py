@@ -97,14 +97,20 @@ def align_depth(mono: np.ndarray, metric: np.ndarray, cells: int = 7, smooth: fl
     return np.where(valid, aligned, np.nan).astype(np.float32)
 
 
-def fuse_depth(metric: np.ndarray, aligned: np.ndarray, max_rel: float = 0.1) -> np.ndarray:
+def fuse_depth(metric: np.ndarray, aligned: np.ndarray, max_rel: float = 0.1, spread_k: float = 0.0) -> np.ndarray:
     """(H, W) metric depth (0 where unknown) with its holes filled from `aligned` (H, W; NaN
-    stays unknown), and its pixels more than `max_rel` of `aligned` away from it replaced by
+    stays unknown), and its pixels more than a share `r` of `aligned` away from it replaced by
     it: there the stereo is most likely one of its gross errors (a window across a depth edge,
     a repeated texture) rather than the fit off by that much (`StereoConfig.mono_max_rel` has
-    the measurements).
+    the measurements). r = max(`max_rel`, `spread_k` robust spreads (1.4826 x the median) of the
+    known pixels' |metric / aligned - 1|): a fit that is itself far from the stereo (a prior whose
+    errors vary faster than the fit's nodes) does not veto good stereo.
     max_rel <= 0 keeps every known metric pixel."""
     known = metric > 0
-    agree = known & ((np.abs(metric - aligned) <= max_rel * aligned) | (max_rel <= 0))
+    both = known & np.isfinite(aligned) & (aligned > 0)
+    r = max_rel
+    if max_rel > 0 and spread_k > 0 and both.any():
+        r = max(r, spread_k * 1.4826 * float(np.median(np.abs(metric[both] / aligned[both] - 1.0))))
+    agree = known & ((np.abs(metric - aligned) <= r * aligned) | (max_rel <= 0))
     keep = agree | (known & ~np.isfinite(aligned))
     return np.where(keep, metric, aligned).astype(np.float32)

@@ -256,7 +256,8 @@ class StereoPriors:
             f.depth_prior, f.depth_scale_shift = mono
             self._mark(f.index, False)
             return
-        f.depth_prior = torch.as_tensor(fuse_depth(depth, aligned, self.params.mono_max_rel), device=f.rgb.device)
+        f.depth_prior = torch.as_tensor(fuse_depth(depth, aligned, self.params.mono_max_rel,
+                                                   self.params.mono_veto_spread), device=f.rgb.device)
         f.depth_scale_shift = (1.0, 0.0)
         self._mark(f.index, True)
 

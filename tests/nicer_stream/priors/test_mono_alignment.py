@@ -83,6 +83,23 @@ def test_fusion_keeps_the_metric_depth_near_the_fit_and_fills_the_rest():
     np.testing.assert_array_equal(fuse_depth(metric, aligned, max_rel=0)[0], [1.0, 3.0, 2.0])  # off
 
 
+def test_the_veto_widens_with_the_spread_of_the_stereo_around_a_poor_fit():
+    """A fit 20% off everywhere but one pixel: a fixed 10% veto replaces all the good stereo with
+    it; three robust spreads (here ~30%) keep the stereo and still replace the gross error."""
+    rng = np.random.default_rng(0)
+    aligned = np.full(1000, 2.0, np.float32)
+    metric = (aligned * (1 + rng.choice([-0.2, 0.2], 1000))).astype(np.float32)
+    metric[0] = 4.0  # 100% off: a gross error
+    fixed = fuse_depth(metric, aligned, 0.1)
+    assert (fixed == aligned).all()
+    adaptive = fuse_depth(metric, aligned, 0.1, spread_k=3.0)
+    assert adaptive[0] == 2.0 and (adaptive[1:] == metric[1:]).all()
+    tight = 2.0 * (1 + rng.normal(0, 0.01, 1000)).astype(np.float32)  # a good fit: the spread stays below 10%
+    tight[0] = 2.5  # 25% off
+    assert fuse_depth(tight, aligned, 0.1, spread_k=3.0)[0] == 2.0
+    assert fuse_depth(metric, aligned, 0.0, spread_k=3.0)[0] == 4.0  # max_rel 0: every stereo pixel kept
+
+
 def test_the_realistic_oracle_fitted_to_textured_gt_pixels_beats_its_affine_fit_on_the_rest(replica_dir):
     """Replica frame 10 at 320 px: the oracle's depth fitted to the GT depth of the textured half
     of the pixels (standing in for stereo) is closer to GT on the other half than the best
