@@ -35,6 +35,9 @@ def fit_wall_planes(points: np.ndarray, tol: float, rng: np.random.Generator, ma
     def orient(n, c):  # the camera's side of the plane is n.x < c
         return (-n, -c) if c < 0 else (n, c)
 
+    def rel_dist(planes):  # (len(planes), N): each point's distance to each plane over its z
+        return np.stack([np.abs(points @ n - c) / z for n, c in planes])
+
     for _ in range(max_planes):
         idx = np.flatnonzero(free)
         if len(idx) < 3:
@@ -56,13 +59,13 @@ def fit_wall_planes(points: np.ndarray, tol: float, rng: np.random.Generator, ma
         if best is None or best_count < min_share * len(points):
             break
         planes.append(best)
-        free &= ~(np.abs(points @ best[0] - best[1]) <= tol * z)
+        free &= rel_dist([best])[0] > tol
+    if not planes:
+        return planes, 0.0
     # Least squares on each plane's points, a point going to the plane it lies nearest (two walls'
     # points near their corner are within `tol` of both); a refit that puts points behind stays out.
     for _ in range(2):
-        if not planes:
-            break
-        dist = np.stack([np.abs(points @ n - c) / z for n, c in planes])
+        dist = rel_dist(planes)
         owner = np.where(dist.min(0) <= tol, dist.argmin(0), -1)
         for k in range(len(planes)):
             mine = points[owner == k]
@@ -73,9 +76,7 @@ def fit_wall_planes(points: np.ndarray, tol: float, rng: np.random.Generator, ma
             m, d = orient(m, float(m @ centre))
             if ((points @ m - d) > tol * z).mean() <= max_behind:
                 planes[k] = (m, d)
-    if not planes:
-        return planes, 0.0
-    return planes, float((np.stack([np.abs(points @ n - c) / z for n, c in planes]).min(0) <= tol).mean())
+    return planes, float((rel_dist(planes).min(0) <= tol).mean())
 
 
 def fill_planar_holes(depth: np.ndarray, intr: Intrinsics, blank: np.ndarray | None = None, min_area: float = 0.01,
@@ -114,9 +115,10 @@ def fill_planar_holes(depth: np.ndarray, intr: Intrinsics, blank: np.ndarray | N
         planes, share = fit_wall_planes(rays[ring] * depth[ring][:, None], tol, rng, max_planes, min_share, max_behind)
         if not planes or share < min_inliers:
             continue
-        z = np.full(int(hole.sum()), np.inf)
+        hole_rays = rays[hole]
+        z = np.full(len(hole_rays), np.inf)
         for n, c in planes:  # c > 0: a ray meets the plane in front of the camera where n . ray > 0
-            along = rays[hole] @ n
+            along = hole_rays @ n
             z = np.minimum(z, np.where(along > 1e-9, c / np.maximum(along, 1e-9), np.inf))
         z[~np.isfinite(z) | (z > 2.0 * float(depth[ring].max()))] = 0.0
         out[hole] = z

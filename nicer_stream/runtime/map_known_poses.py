@@ -176,7 +176,7 @@ def run_map(req: MapRequest) -> Path:
                f"depth prior aligned to metres by flow triangulation on {len(aligned)}/{len(mfs)} frames"
                + ("" if cfg.loss.metric_prior_alignment else " (for the bound only; the depth loss refits scale and shift)")]
         + ([f"each frame's depth fitted to its plane-sweep stereo depth, which it fills (stereo.mono_fusion): "
-            f"{stereo.fusion_note().replace('keyframes', 'frames')}"] if stereo is not None else []),
+            f"{stereo.fusion_note('frame')}"] if stereo is not None else []),
         intrinsics=intrinsics_dict(intr),
         config=config_mod.to_dict(cfg),
         stats={"iterations": stats.iters if stats else 0, "final_loss": stats.loss if stats else None,

@@ -261,13 +261,13 @@ class StereoPriors:
         f.depth_scale_shift = (1.0, 0.0)
         self._mark(f.index, True)
 
-    def fusion_note(self) -> str:
-        """How many keyframes' monocular priors were fitted to their stereo, for the run's summary."""
+    def fusion_note(self, what: str = "keyframe") -> str:
+        """How many `what`s' monocular priors were fitted to their stereo, for the run's summary."""
         n, ok = len(self.fused), sum(self.fused.values())
         if n == 0:
-            return "no keyframe was swept"
+            return f"no {what} was swept"
         kept = f"; {n - ok} kept the monocular prior alone (too little stereo depth)" if ok < n else ""
-        return f"{ok} of {n} keyframes{kept}"
+        return f"{ok} of {n} {what}s{kept}"
 
     def _mark(self, index: int, fixed: bool) -> None:
         if fixed:
