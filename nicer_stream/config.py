@@ -364,10 +364,20 @@ class StereoConfig:
 
     window: int = 9
     """ZNCC window side, pixels (odd)."""
-    max_side: int | None = 640
+    max_side: int | None = 960
     """Sweep the source's larger image (`Frame.detail`, the frontend's) resized to this longer
     side where there is one, then average the depth down to the map's pixels (None: the map's
-    images). Replica clip, GT poses: L1 12.3 cm at 320 px -> 8.2 cm at 640 (5x the sweep's cost)."""
+    images); above 640 px the window and the filters scale with it (`priors/stereo.py:
+    scaled_to`). Replica clip, GT poses: L1 12.3 cm at 320 px -> 8.2 cm at 640 (5x the sweep's
+    cost); with stop 44's filters, keyframes 0/5/10/15/19 (`runs/s48/planes.py`): 640 / 960 / 1200
+    px: 5.93 / 5.18 / 5.02 cm on 53.4 / 58.6 / 60.8% of the pixels, 0.6 / 1.3 / 2.3 s per sweep;
+    SLAM runs, `--priors stereo`, seeds 0-2 (docs/priors.md, stop 47): mesh accuracy 5.75 /
+    5.18 / 6.04 cm. The monocular fusion sweeps at `fusion_max_side` instead."""
+    fusion_max_side: int | None = 640
+    """`max_side` of the sweep a monocular prior is fitted to (`mono_fusion`). Replica clip,
+    realistic `oracle`, seeds 0-2: at 960 the ICP-aligned mesh was as good (3.66 / 2.54 cm against
+    3.72 / 2.47) but the trajectory-aligned one worse (4.99 / 4.21 cm, 69% against 4.06 / 2.84 cm,
+    87%: a scale gap of +1.0% against -0.2%), and the sweeps cost 10-13 s more per run."""
     min_planes: int = 48
     """At least this many depth planes."""
     max_planes: int = 160

@@ -19,6 +19,8 @@ pixels get depth 0.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import cv2
 import numpy as np
 
@@ -99,6 +101,26 @@ def plane_count(intr: Intrinsics, baselines: list[float], near: float, far: floa
     return int(np.clip(np.ceil(span_px), p.min_planes, p.max_planes))
 
 
+# The window and the filters' sizes were tuned on 640 px sweeps; a larger sweep scales them so
+# that they keep their extent in the scene (and a smaller one keeps them as they are).
+TUNED_SIDE = 640
+
+
+def _odd(x: float) -> int:
+    return 2 * int(round((x - 1) / 2)) + 1
+
+
+def scaled_to(params: StereoConfig, side: int) -> StereoConfig:
+    """`params` with `window`, `edge_window` (pixels) and `speckle_size` (pixels, an area) scaled
+    by side / TUNED_SIDE when the sweep's longer side `side` exceeds TUNED_SIDE."""
+    s = side / TUNED_SIDE
+    if s <= 1.0:
+        return params
+    return dataclasses.replace(params, window=_odd(params.window * s),
+                               edge_window=_odd(params.edge_window * s) if params.edge_window >= 2 else params.edge_window,
+                               speckle_size=int(round(params.speckle_size * s * s)))
+
+
 def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tuple[np.ndarray, np.ndarray]],
                 intr: Intrinsics, near: float, far: float,
                 params: StereoConfig = StereoConfig()) -> np.ndarray:
@@ -110,7 +132,9 @@ def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tup
     confident."""
     if not partners:
         raise ValueError("plane sweep needs at least one partner image")
-    w, (h, wd) = params.window, ref_rgb.shape[:2]
+    (h, wd) = ref_rgb.shape[:2]
+    params = scaled_to(params, max(h, wd))
+    w = params.window
     K = intr.matrix()
     a = to_grey_f32(ref_rgb)
     mean_a, std_a = _box(a, w), local_std(a, w)

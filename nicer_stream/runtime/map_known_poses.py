@@ -27,7 +27,7 @@ from nicer_stream.runtime.scene_export import save_render, scene_mesh
 from nicer_stream.runtime.stage_timer import StageTimer
 from nicer_stream.render.renderer import render_image
 from nicer_stream.runtime.source_setup import intrinsics_dict, open_configured
-from nicer_stream.slam.stereo_priors import StereoPriors
+from nicer_stream.slam.stereo_priors import StereoPriors, fusion_params
 from sources.base import SourceOptions
 
 log = logging.getLogger(__name__)
@@ -103,7 +103,7 @@ def _fuse_stereo(cfg, frames, mfs, poses, bound: SceneBound, points: np.ndarray 
     """`stereo.mono_fusion` as the SLAM does it, with the known poses: every frame swept against
     partners chosen by baseline (the metric-aligned priors' `points` standing in for the
     frontend's landmarks), its monocular depth fitted to that depth and filling its holes."""
-    sp = StereoPriors(cfg.stereo)
+    sp = StereoPriors(fusion_params(cfg.stereo))
     for f in frames:
         sp.observe(f.index, f.rgb, f.detail)
     index = [m.index for m in mfs]

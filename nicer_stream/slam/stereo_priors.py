@@ -16,6 +16,7 @@ to its stereo depth and fills the stereo's holes (`priors/mono_alignment.py`) in
 planar fill; its normal prior stays the provider's."""
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import cv2
@@ -124,6 +125,11 @@ def stereo_normals(depth: np.ndarray, intr) -> np.ndarray:
     # A normal needs its neighbours known too.
     ok = cv2.erode(valid.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     return np.where(ok[..., None], n, 0.0).astype(np.float32)
+
+
+def fusion_params(params: StereoConfig) -> StereoConfig:
+    """`params` for the sweep a monocular prior is fitted to: its images at `fusion_max_side`."""
+    return dataclasses.replace(params, max_side=params.fusion_max_side)
 
 
 class StereoPriors:

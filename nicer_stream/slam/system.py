@@ -33,7 +33,7 @@ from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpda
 from nicer_stream.slam.map_jobs import InlineMapping, MapJob, MappingExecutor, MapResult, job_frames, take_snapshot
 from nicer_stream.slam.motion import frontend_disagreement, predict_pose, tracking_failure
 from nicer_stream.slam.pose_corrections import spread_corrections
-from nicer_stream.slam.stereo_priors import StereoPriors
+from nicer_stream.slam.stereo_priors import StereoPriors, fusion_params
 from nicer_stream.slam.two_view import TwoView, two_view_from_tracks, two_view_init
 from nicer_stream.slam.window import ba_frames, select_window
 from nicer_stream.tracking.flow_init import pose_from_flows
@@ -90,7 +90,7 @@ class SlamSystem:
         # `--priors stereo`: keyframe depth/normal priors by plane sweep before each mapping call;
         # `fuse_mono` (a monocular provider with `stereo.mono_fusion`): the sweep's depth with the
         # provider's fitted to it.
-        self.stereo = StereoPriors(cfg.stereo) if stereo or fuse_mono else None
+        self.stereo = StereoPriors(cfg.stereo if stereo else fusion_params(cfg.stereo)) if stereo or fuse_mono else None
         self.progress = progress
         # Polled by mapping iterations and between the held frames of the two-view start:
         # a stop request ends them early (the caller then writes what exists).

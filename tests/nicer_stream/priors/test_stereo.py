@@ -3,7 +3,8 @@ textured surfaces, untextured and unseen pixels not confident, the homography by
 import numpy as np
 import pytest
 
-from nicer_stream.priors.stereo import drop_depth_edges, drop_speckles, local_std, plane_homography, sweep_depth
+from nicer_stream.config import StereoConfig
+from nicer_stream.priors.stereo import TUNED_SIDE, drop_depth_edges, drop_speckles, local_std, plane_homography, scaled_to, sweep_depth
 from nicer_stream.types import Intrinsics
 from sources import open_source
 from sources.base import SourceOptions
@@ -102,3 +103,14 @@ def test_local_std_is_zero_on_flat_grey_and_the_std_of_a_checkerboard():
     assert np.abs(local_std(flat, 5)).max() < 1e-4
     board = (np.indices((20, 20)).sum(0) % 2).astype(np.float32)  # 0 / 1 alternating
     assert abs(float(local_std(board, 4)[10, 10]) - 0.5) < 1e-4  # an even window: half of each
+
+
+def test_a_sweep_larger_than_the_tuned_size_scales_its_windows_and_a_smaller_one_keeps_them():
+    p = StereoConfig(window=9, edge_window=5, speckle_size=400)
+    assert scaled_to(p, TUNED_SIDE) == p and scaled_to(p, 320) == p
+    big = scaled_to(p, 960)
+    assert (big.window, big.edge_window, big.speckle_size) == (13, 7, 900)  # 1.5x the sides, 2.25x the area
+    big = scaled_to(p, 1200)
+    assert (big.window, big.edge_window, big.speckle_size) == (17, 9, 1406)
+    assert scaled_to(StereoConfig(edge_window=0), 1200).edge_window == 0  # off stays off
+    assert big.min_ncc == p.min_ncc and big.max_side == p.max_side

@@ -1,5 +1,7 @@
 """Stereo priors inside the SLAM: partner choice, normals only where depth is known, the
 keyframe priors filled in the poses' unit, and a run with no ground truth anywhere."""
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import torch
@@ -263,3 +265,17 @@ def _gt_points(frame, step: int = 16) -> np.ndarray:
 
     P = depth_to_points(frame.gt_depth, frame.intrinsics)[::step, ::step].reshape(-1, 3)
     return P[P[:, 2] > 0]
+
+
+def test_stereo_sweeps_at_max_side_and_the_monocular_fusion_at_its_own_size():
+    from nicer_stream.config import load
+    from nicer_stream.slam.system import SlamSystem
+
+    cfg = load("fast")
+    assert cfg.stereo.max_side != cfg.stereo.fusion_max_side  # else this test shows nothing
+    assert SlamSystem(cfg, stereo=True).stereo.params.max_side == cfg.stereo.max_side
+    assert SlamSystem(cfg, fuse_mono=True).stereo.params.max_side == cfg.stereo.fusion_max_side
+    assert SlamSystem(cfg).stereo is None
+    # Only the sweep's size differs: the fusion's other settings are the provider's.
+    fused = SlamSystem(cfg, fuse_mono=True).stereo.params
+    assert fused == replace(cfg.stereo, max_side=cfg.stereo.fusion_max_side)
