@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from nicer_stream.config import StereoConfig
-from nicer_stream.priors.stereo import TUNED_SIDE, drop_depth_edges, drop_speckles, local_std, plane_homography, scaled_to, sweep_depth
+from nicer_stream.priors.stereo import (TUNED_SIDE, best_planes_reference, best_planes_streaming, drop_depth_edges,
+                                        drop_speckles, local_std, plane_homography, scaled_to, sweep_depth)
 from nicer_stream.types import Intrinsics
 from sources import open_source
 from sources.base import SourceOptions
@@ -43,6 +44,30 @@ def test_sweep_depth_on_textured_surfaces_within_3_percent(room):
     assert m.mean() > 0.5, m.mean()  # most of the room is textured
     assert np.median(rel) < 0.03, np.median(rel)  # measured 0.64%
     assert np.mean(rel > 0.1) < 0.1
+
+
+@pytest.mark.parametrize("n_partners", [1, 2, 3])
+def test_the_streamed_best_planes_equal_those_of_the_whole_cost_volume(n_partners):
+    rng = np.random.default_rng(n_partners)
+    # Costs on a coarse grid (many ties: the first minimum must win in both) with unseen (2.0) runs.
+    costs = np.round(rng.uniform(0, 1, (n_partners, 12, 9, 11)) * 8).astype(np.float32) / 8
+    costs[:, :, :3, :4] = 2.0  # outside every partner
+    costs[0, 4:, 5:] = 2.0  # the first partner loses the far planes of a corner
+    ref = best_planes_reference(costs, 2)
+    got = best_planes_streaming((list(costs[:, i]) for i in range(costs.shape[1])), 2)
+    for name in ("k", "c0", "agree"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name), err_msg=name)
+    inner = (ref.k > 0) & (ref.k < costs.shape[1] - 1)  # the parabola's neighbours exist only there
+    np.testing.assert_array_equal(got.cm[inner], ref.cm[inner])
+    np.testing.assert_array_equal(got.cp[inner], ref.cp[inner])
+
+
+def test_a_streamed_sweep_gives_the_depth_of_the_whole_volume(room):
+    f = room[10]
+    partners = [(room[5].rgb, room[5].gt_pose), (room[15].rgb, room[15].gt_pose)]
+    streamed = sweep_depth(f.rgb, f.gt_pose, partners, f.intrinsics, *_range(f))
+    np.testing.assert_array_equal(streamed, sweep_depth(f.rgb, f.gt_pose, partners, f.intrinsics, *_range(f), volume=True))
+    assert (streamed > 0).mean() > 0.5
 
 
 def test_untextured_and_unseen_pixels_are_not_confident(room):
