@@ -19,8 +19,7 @@ pixels get depth 0.
 """
 from __future__ import annotations
 
-import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -117,9 +116,9 @@ def scaled_to(params: StereoConfig, side: int) -> StereoConfig:
     s = side / TUNED_SIDE
     if s <= 1.0:
         return params
-    return dataclasses.replace(params, window=_odd(params.window * s),
-                               edge_window=_odd(params.edge_window * s) if params.edge_window >= 2 else params.edge_window,
-                               speckle_size=int(round(params.speckle_size * s * s)))
+    return replace(params, window=_odd(params.window * s),
+                   edge_window=_odd(params.edge_window * s) if params.edge_window >= 2 else params.edge_window,
+                   speckle_size=int(round(params.speckle_size * s * s)))
 
 
 @dataclass
@@ -127,7 +126,8 @@ class BestPlanes:
     """Per pixel (H, W): the best plane k of the cost over partners (the minimum over them), its
     cost c0, the costs of planes k - 1 and k + 1 (cm, cp; any value at the range's ends), and
     whether every partner that sees the pixel at plane k puts its own best within
-    `max_plane_disagreement` planes of k (agree)."""
+    `max_plane_disagreement` planes of k (agree: on a blank wall every depth matches and the
+    partners' choices scatter)."""
 
     k: np.ndarray
     c0: np.ndarray
@@ -217,11 +217,9 @@ def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tup
             H = plane_homography(K, T, d)
             warped = cv2.warpPerspective(g, H, (wd, h), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
             inside = _box(cv2.warpPerspective(ones, H, (wd, h), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP), w) > 0.999
-            out.append(np.where(inside, 1.0 - zncc(a, mean_a, std_a, warped, w), 2.0).astype(np.float32))
+            out.append(np.where(inside, 1.0 - zncc(a, mean_a, std_a, warped, w), 2.0).astype(np.float32, copy=False))
         return out
 
-    # Partners that see the pixel at its depth must each prefer (nearly) the same plane: on a
-    # blank wall every depth matches and the partners' choices scatter.
     costs = None
     if volume or params.min_uniqueness > 0:
         costs = np.stack([np.stack(plane_costs(d)) for d in 1.0 / inv_d], axis=1)
