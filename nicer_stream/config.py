@@ -502,6 +502,10 @@ class MeshConfig:
     visibility_margin_m: float = 0.1
     """Faces further than this behind every rendered depth map are culled (never seen), and
     so are faces this far in front of some rendered depth map (seen through: free space)."""
+    measured_through_rel: float = 0.05
+    """Faces further in front of some keyframe's measured stereo depth than this fraction of
+    it are culled too (that measurement saw through them); 0: off. Runs with plane-sweep
+    stereo only (`--priors stereo`, or `stereo.mono_fusion`)."""
 
 
 @dataclass(frozen=True)

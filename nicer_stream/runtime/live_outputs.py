@@ -25,12 +25,14 @@ RENDER_SCALE = 0.5
 MESH_RESOLUTION = 64
 
 
-def coarse_mesh(slam: SlamSystem, poses: np.ndarray, intr: Intrinsics, model=None, beta=None):
-    """`scene_mesh` at MESH_RESOLUTION: a second or two (of `model`, default the published map)."""
+def coarse_mesh(slam: SlamSystem, poses: np.ndarray, intr: Intrinsics, model=None, beta=None, measured=None):
+    """`scene_mesh` at MESH_RESOLUTION: a second or two (of `model`, default the published map;
+    `measured` views default to the SLAM's, taken here: pass them from the SLAM thread)."""
     coarse = dataclasses.replace(slam.cfg, mesh=dataclasses.replace(slam.cfg.mesh, resolution=MESH_RESOLUTION))
     if model is None:
         model, beta = slam.map_view()
-    return scene_mesh(model, beta, poses, intr, coarse)
+    return scene_mesh(model, beta, poses, intr, coarse,
+                      measured=slam.measured_views(intr) if measured is None else measured)
 
 
 class LiveMapOutputs:
@@ -54,6 +56,7 @@ class LiveMapOutputs:
         T = slam.poses[event.index].clone()
         kf = [slam.poses[k].double().cpu().numpy() for k in slam.keyframes if k in slam.poses]
         poses = np.stack(slam.trajectory()[1]) if self.mesh_every and self.updates % self.mesh_every == 0 else None
+        measured = slam.measured_views(intr) if poses is not None else []
 
         seq = self.updates
 
@@ -61,11 +64,11 @@ class LiveMapOutputs:
             if seq < self.updates:  # a newer update is queued behind this one: it shows the newer map
                 self.skipped += 1
                 return
-            self._emit(event, intr, model, beta, T, kf, poses)
+            self._emit(event, intr, model, beta, T, kf, poses, measured)
 
         self.submit(emit)
 
-    def _emit(self, event, intr, model, beta, T, kf, poses) -> None:
+    def _emit(self, event, intr, model, beta, T, kf, poses, measured) -> None:
         small = intr.scaled(RENDER_SCALE)
         view = render_image(model, beta, T, small, self.slam.cfg.render)
         self.sink.log_map_render(event.index, view.rgb, view.depth, view.normal, small, T.double().cpu().numpy())
@@ -79,7 +82,7 @@ class LiveMapOutputs:
         self.sink.log_scalars(event.index, {"mapping_loss": event.loss,
                                             **{f"mapping_{k}": v for k, v in event.terms.items()}})
         if poses is not None:
-            mesh = coarse_mesh(self.slam, poses, intr, model, beta)
+            mesh = coarse_mesh(self.slam, poses, intr, model, beta, measured)
             if len(mesh.faces):
                 self.sink.log_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces),
                                    np.asarray(mesh.visual.vertex_colors)[:, :3])

@@ -168,7 +168,8 @@ def run_map(req: MapRequest) -> Path:
             save_render(out, frames[i].index, view, frames[i].rgb, frames[i].timestamp)
             print(f"render {k + 1}/{len(views)} (frame {frames[i].index})", flush=True)
         write_trajectory(out, [f.timestamp for f in frames], list(poses_np))
-        write_mesh(out, scene_mesh(model, beta, poses_np, intr, cfg))
+        measured = stereo.measured_views({f.index: poses_np[i] for i, f in enumerate(frames)}, intr) if stereo else []
+        write_mesh(out, scene_mesh(model, beta, poses_np, intr, cfg, measured=measured))
     write_summary(
         out, frames=len(frames), preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
         interrupted=interrupted, bound=bound, source=req.source,

@@ -64,11 +64,12 @@ class MeshAborted(Exception):
 
 
 def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intrinsics, cfg: SlamConfig,
-               should_stop=None, sparse: bool = True) -> trimesh.Trimesh:
+               should_stop=None, sparse: bool = True, measured: list[DepthView] = ()) -> trimesh.Trimesh:
     """Marching cubes over the bound, evaluating the full SDF only in voxels the mapping
     sampled (elsewhere the map knows nothing: treated as free space), then culled to
     the cameras' frustums and to what the rendered depth says they see (no surfaces
-    behind walls, none in space the renders see through). Vertex colours from the colour network.
+    behind walls, none in space the renders, or the keyframes' `measured` depth, see through:
+    `cfg.mesh.measured_through_rel`). Vertex colours from the colour network.
     `should_stop()`, polled between SDF chunks, raises MeshAborted when true. `sparse`: the SDF
     densely only near the surface (`extract_mesh`; the same mesh), False: at every grid point."""
     resolution = cfg.mesh.resolution
@@ -98,4 +99,6 @@ def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intr
     if not len(mesh.faces):
         return mesh
     mesh = cull_to_frustums(mesh, poses, intr)
-    return cull_by_rendered_depth(mesh, depth_views(model, beta, poses, intr, cfg), margin=cfg.mesh.visibility_margin_m)
+    measured = measured if cfg.mesh.measured_through_rel > 0 else ()
+    return cull_by_rendered_depth(mesh, depth_views(model, beta, poses, intr, cfg), margin=cfg.mesh.visibility_margin_m,
+                                  measured=measured, measured_rel=cfg.mesh.measured_through_rel)

@@ -332,7 +332,8 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
             if mapped and len(poses):
                 say(f"writing outputs: the mesh ({cfg.mesh.resolution}^3 grid)")
                 try:
-                    mesh = scene_mesh(slam.model, slam.beta, poses_np, intr, cfg, should_stop=lambda: stop.requested)
+                    mesh = scene_mesh(slam.model, slam.beta, poses_np, intr, cfg, should_stop=lambda: stop.requested,
+                                      measured=slam.measured_views(intr))
                 except MeshAborted:  # a stop during the full mesh: a coarse one in a second or two
                     print(f"mesh extraction stopped: writing a coarse mesh ({MESH_RESOLUTION}^3) instead", flush=True)
                     mesh = coarse_mesh(slam, poses_np, intr)

@@ -27,6 +27,7 @@ from nicer_stream.config import StereoConfig
 from nicer_stream.frontend.triangulate import project
 from nicer_stream.geometry.camera import in_image
 from nicer_stream.mapping.map_frame import MapFrame
+from nicer_stream.mesh.visibility import DepthView
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.grey import to_grey_f32
 from nicer_stream.priors.mono_alignment import align_depth, fuse_depth
@@ -145,6 +146,9 @@ class StereoPriors:
         self.fixed: set[int] = set()  # frames whose depth prior is in the poses' unit: (w, q) = (1, 0)
         # keyframe -> whether its monocular prior was fitted to its stereo (False: the fit failed)
         self.fused: dict[int, bool] = {}
+        # keyframe -> its stereo depth (H, W) at the map's size, 0 where unknown: the sweep's with its
+        # planar fill, without the monocular fusion (the mesh is culled where it sees through: `measured_views`)
+        self.measured: dict[int, np.ndarray] = {}
         self.seconds = 0.0
 
     def observe(self, index: int, rgb: np.ndarray, detail: DetailImage | None = None) -> None:
@@ -238,12 +242,14 @@ class StereoPriors:
             depth = shrink_depth(depth, f.intr.width, f.intr.height)
         mono = self.mono.get(f.index)
         if mono is not None:
+            self.measured[f.index] = np.array(depth, np.float32)  # not the monocular fill (~10% distorted)
             self._fuse(f, depth, mono)
             return
         if self.params.fill_min_inliers > 0:
             blank = local_std(to_grey_f32(f.rgb.cpu().numpy()), self.params.window) < self.params.fill_max_texture
             depth = fill_planar_holes(depth, f.intr, blank, min_inliers=self.params.fill_min_inliers,
                                       max_planes=self.params.fill_planes)
+        self.measured[f.index] = np.array(depth, np.float32)  # with its planar fill, checked against the sweep
         f.depth_prior = torch.as_tensor(depth, device=f.rgb.device)
         f.normal_prior = torch.as_tensor(stereo_normals(depth, f.intr), device=f.rgb.device) if self.params.normals else None
         f.depth_scale_shift = (1.0, 0.0) if self.params.scale == "fixed" else None
@@ -266,6 +272,12 @@ class StereoPriors:
                                                    self.params.mono_veto_spread), device=f.rgb.device)
         f.depth_scale_shift = (1.0, 0.0)
         self._mark(f.index, True)
+
+    def measured_views(self, poses: dict[int, np.ndarray], intr: Intrinsics) -> list[DepthView]:
+        """Each swept keyframe's measured depth as a `DepthView` at its pose T_world_cam (4, 4) in
+        `poses` (keyframes without one are left out); `intr` is the map's."""
+        return [DepthView(np.asarray(poses[k], np.float64), intr, d) for k, d in sorted(self.measured.items())
+                if k in poses and d.shape == (intr.height, intr.width)]
 
     def fusion_note(self, what: str = "keyframe") -> str:
         """How many `what`s' monocular priors were fitted to their stereo, for the run's summary."""

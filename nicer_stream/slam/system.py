@@ -21,6 +21,7 @@ import torch
 from nicer_stream.config import SlamConfig
 from nicer_stream.frontend.frontend import ClassicalFrontend, FrontendPose, TwoViewTracks
 from nicer_stream.mapping.map_frame import MapFrame
+from nicer_stream.mesh.visibility import DepthView
 from nicer_stream.mapping.depth_shift import shift_from_normals
 from nicer_stream.mapping.mapper import Mapper
 from nicer_stream.mapping.prior_alignment import align_prior_to_map, align_to_widest_partner
@@ -39,7 +40,7 @@ from nicer_stream.slam.window import ba_frames, select_window
 from nicer_stream.tracking.flow_init import pose_from_flows
 from nicer_stream.tracking.tracker import Tracker
 from nicer_stream.errors import UserError
-from nicer_stream.types import Frame, Priors
+from nicer_stream.types import Frame, Intrinsics, Priors
 
 log = logging.getLogger(__name__)
 
@@ -571,6 +572,13 @@ class SlamSystem:
     def _read_map(self, snap) -> None:
         """Tracking (and `map_view`) read `snap` from now on."""
         self.tracker.model, self.tracker.beta = snap.model, snap.beta
+
+    def measured_views(self, intr: Intrinsics) -> list[DepthView]:
+        """The keyframes' measured stereo depth at their current poses, for the mesh's culling
+        (`scene_mesh(measured=...)`); [] without plane-sweep stereo. Call it on the SLAM thread."""
+        if self.stereo is None:
+            return []
+        return self.stereo.measured_views({k: T.double().cpu().numpy() for k, T in self.poses.items()}, intr)
 
     def map_view(self) -> tuple[SceneModel, BetaField]:
         """The map as tracking reads it: the live one inline, else the last published snapshot

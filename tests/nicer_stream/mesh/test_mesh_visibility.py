@@ -36,3 +36,21 @@ def test_a_floater_the_render_sees_through_is_dropped_unless_another_view_sees_i
     # A face is dropped only when all its vertices are seen through: one vertex on the wall keeps it.
     tri = trimesh.Trimesh(vertices=[[0, 0, 2.0], [0.1, 0, 1.0], [0, 0.1, 1.0]], faces=[[0, 1, 2]])
     assert len(cull_by_rendered_depth(tri, [view], margin=0.1).faces) == 1
+
+
+def test_a_measured_depth_culls_what_lies_in_front_of_it_by_more_than_its_fraction():
+    render = DepthView(np.eye(4), INTR, np.full((48, 64), 1.5))  # the map renders the halo at 1.5 m
+    measured = np.full((48, 64), 2.0)  # the stereo saw the wall at 2 m through it
+    measured[:, :32] = 0.0  # and nothing on the left half
+    stereo = DepthView(np.eye(4), INTR, measured)
+    pts = np.array([[0.2, 0, 1.5], [0.2, 0, 1.95], [0.2, 0, 2.0], [-0.2, 0, 1.5]])
+    assert seen_through_vertices(pts, [stereo], 0.0, rel=0.05).tolist() == [True, False, False, False]
+    right = trimesh.Trimesh(vertices=[[0.1, -0.1, 1.5], [0.3, -0.1, 1.5], [0.3, 0.1, 1.5]], faces=[[0, 1, 2]])
+    left = trimesh.Trimesh(vertices=[[-0.3, -0.1, 1.5], [-0.1, -0.1, 1.5], [-0.1, 0.1, 1.5]], faces=[[0, 1, 2]])
+    both = trimesh.util.concatenate([right, left])
+    assert len(cull_by_rendered_depth(both, [render], margin=0.1).faces) == 2  # the render agrees with both
+    out = cull_by_rendered_depth(both, [render], margin=0.1, measured=[stereo], measured_rel=0.05)
+    assert len(out.faces) == 1 and (out.vertices[:, 0] < 0).all()  # unknown depth culls nothing
+    # Within the fraction (1.92 m against 2 m at 5%) a surface is kept.
+    near = trimesh.Trimesh(vertices=right.vertices * [1, 1, 1.92 / 1.5], faces=right.faces)
+    assert len(cull_by_rendered_depth(near, [render], margin=0.5, measured=[stereo], measured_rel=0.05).faces) == 1

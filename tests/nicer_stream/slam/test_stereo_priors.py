@@ -71,6 +71,14 @@ def test_keyframe_priors_are_metric_in_the_poses_unit_and_two_sided_once_possibl
     assert m.mean() > 0.5 and np.median(np.abs(d[m] - gt[m]) / gt[m]) < 0.03
     assert f.depth_scale_shift == (1.0, 0.0)
     assert f.normal_prior is None  # `stereo.normals` off by default
+    # The stereo depth is kept for the mesh's culling (a copy: the prior may change later).
+    measured = sp.measured[5]
+    np.testing.assert_array_equal(measured, d)
+    assert not np.shares_memory(measured, d)
+    views = sp.measured_views({5: poses[5].double().numpy(), 10: poses[10].double().numpy()}, f.intr)
+    assert [v.depth is sp.measured[i] for v, i in zip(views, (5, 10))] == [True, True]
+    np.testing.assert_array_equal(views[0].T_world_cam, poses[5].double().numpy())
+    assert len(sp.measured_views({5: poses[5].double().numpy()}, f.intr.scaled(0.5))) == 0  # another size
     on = {5: MapFrame.from_frame(src[5].without_ground_truth(), None, torch.device("cpu")), 10: frames[10]}
     StereoPriors(StereoConfig(normals=True)).update([5], on, poses, [5, 10], bound)
     assert on[5].normal_prior.shape == (*gt.shape, 3)
@@ -113,6 +121,9 @@ def test_a_monocular_prior_is_fitted_to_the_keyframes_stereo_and_fills_its_holes
     assert sp.fusion_note() == "1 of 2 keyframes; 1 kept the monocular prior alone (too little stereo depth)"
     ok = gt > 0
     assert np.isfinite(d[ok]).all() and (d[ok] > 0).all()  # no holes left
+    # The mesh is culled by the stereo depth alone, not by the monocular fill.
+    swept = sp.measured[5]
+    assert 0.3 < (swept > 0).mean() < ok.mean() and np.median(np.abs(d[swept > 0] - swept[swept > 0])) < 1e-3
     m = mono.numpy()
     A = np.stack([m[ok], np.ones(int(ok.sum()))], 1)
     w, q = np.linalg.lstsq(A, gt[ok], rcond=None)[0]
