@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from nicer_stream.config import MeshConfig
 from nicer_stream.types import Intrinsics
 
 
@@ -68,7 +69,8 @@ def seen_through_vertices(vertices: np.ndarray, views: list[DepthView], margin: 
 
 
 def cull_by_rendered_depth(mesh: trimesh.Trimesh, views: list[DepthView], margin: float = 0.1,
-                           measured: list[DepthView] = (), measured_rel: float = 0.07) -> trimesh.Trimesh:
+                           measured: list[DepthView] = (),
+                           measured_rel: float = MeshConfig.measured_through_rel) -> trimesh.Trimesh:
     """Copy of `mesh` keeping faces with at least one vertex visible in `views` (rendered
     depth) and not all vertices seen through, by `views` (`margin` metres) or by `measured`
     (depth with 0 where unknown; `measured_rel` of it): module docstring."""

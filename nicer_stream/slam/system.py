@@ -21,10 +21,10 @@ import torch
 from nicer_stream.config import SlamConfig
 from nicer_stream.frontend.frontend import ClassicalFrontend, FrontendPose, TwoViewTracks
 from nicer_stream.mapping.map_frame import MapFrame
-from nicer_stream.mesh.visibility import DepthView
 from nicer_stream.mapping.depth_shift import shift_from_normals
 from nicer_stream.mapping.mapper import Mapper
 from nicer_stream.mapping.prior_alignment import align_prior_to_map, align_to_widest_partner
+from nicer_stream.mesh.visibility import DepthView
 from nicer_stream.model.bound import SceneBound, bound_from_points
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
@@ -578,7 +578,8 @@ class SlamSystem:
         (`scene_mesh(measured=...)`); [] without plane-sweep stereo. Call it on the SLAM thread."""
         if self.stereo is None:
             return []
-        return self.stereo.measured_views({k: T.double().cpu().numpy() for k, T in self.poses.items()}, intr)
+        poses = {k: self.poses[k].double().cpu().numpy() for k in self.stereo.measured if k in self.poses}
+        return self.stereo.measured_views(poses, intr)
 
     def map_view(self) -> tuple[SceneModel, BetaField]:
         """The map as tracking reads it: the live one inline, else the last published snapshot
