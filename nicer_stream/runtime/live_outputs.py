@@ -47,7 +47,9 @@ class LiveMapOutputs:
         self.updates = 0
         self.skipped = 0  # updates a newer one overtook before the sink worker got to them
 
-    def __call__(self, event: MapUpdated, intr: Intrinsics) -> None:
+    def __call__(self, event: MapUpdated, intr: Intrinsics, render: bool = True) -> None:
+        """`render` False: no live render of this update (the run's final outputs render its map
+        at full size and log that instead); the keyframes, voxels, losses and mesh as usual."""
         slam = self.slam
         if event.iters == 0 or slam.model is None:
             return  # nothing changed (a stop before the first iteration)
@@ -64,14 +66,15 @@ class LiveMapOutputs:
             if seq < self.updates:  # a newer update is queued behind this one: it shows the newer map
                 self.skipped += 1
                 return
-            self._emit(event, intr, model, beta, T, kf, poses, measured)
+            self._emit(event, intr, model, beta, T, kf, poses, measured, render)
 
         self.submit(emit)
 
-    def _emit(self, event, intr, model, beta, T, kf, poses, measured) -> None:
-        small = intr.scaled(RENDER_SCALE)
-        view = render_image(model, beta, T, small, self.slam.cfg.render)
-        self.sink.log_map_render(event.index, view.rgb, view.depth, view.normal, small, T.double().cpu().numpy())
+    def _emit(self, event, intr, model, beta, T, kf, poses, measured, render=True) -> None:
+        if render:
+            small = intr.scaled(RENDER_SCALE)
+            view = render_image(model, beta, T, small, self.slam.cfg.render)
+            self.sink.log_map_render(event.index, view.rgb, view.depth, view.normal, small, T.double().cpu().numpy())
         if kf:
             self.sink.log_keyframes(np.stack(kf))
         centres, betas = beta.voxel_betas()

@@ -192,8 +192,9 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
             torch.set_num_threads(track_threads)  # the start-up is over: the worker has the rest
         return events, elapsed
 
-    def handle(events, step_s: float, frame) -> None:
-        """Progress line, kept renders and sink logging for each event."""
+    def handle(events, step_s: float, frame, unrendered: MapUpdated | None = None) -> None:
+        """Progress line, kept renders and sink logging for each event (no live render of the
+        `unrendered` map update)."""
         nonlocal last, done
         # Several frames in one step (the two-view start replays the held frames): each
         # line then shows that frame's own tracking time.
@@ -203,7 +204,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                 stage.add_keyframe(waiting.get(e.index, frame))
             if isinstance(e, MapUpdated) and live is not None and intr is not None:
                 with timer.stage("sinks"):
-                    live(e, intr)
+                    live(e, intr, render=e is not unrendered)
             if isinstance(e, FrameTracked):
                 f = waiting.pop(e.index, frame)
                 if f is None:  # a later pose of a frame already reported (refined before the closing call)
@@ -244,7 +245,11 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                     say(f"frame {frame.index:5d}  held for the two-view start  {status()}")
                 handle(events, step_s, frame)
             if not stop.requested:
-                handle(timed(slam.finish)[0], 0.0, None)
+                events = timed(slam.finish)[0]
+                updates = [e for e in events if isinstance(e, MapUpdated)]
+                # The closing update's map is the final one: the outputs below render its last
+                # frame at full size and log that, rather than a half-size live render here.
+                handle(events, 0.0, None, unrendered=updates[-1] if updates and not stop.requested else None)
         except KeyboardInterrupt:  # where the handlers could not be installed (not the main thread)
             stop.request()
         except Exception as e:  # a stage failed: keep what was computed, report it in one line
@@ -322,12 +327,17 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
         with timer.stage("sinks"):
             poses_np = np.stack(poses) if poses else np.zeros((0, 4, 4))
             done_renders = 0
-            for i, t, T in zip(slam.order, times, poses):
+            order = list(zip(slam.order, times, poses))
+            if sink is not None and order:  # the last frame's render is also the sink's view of the final
+                order.insert(0, order.pop())  # map (the closing update had no live render): a stop keeps it
+            for i, t, T in order:
                 if n_renders and kept.get(i) is not None and not stop.requested:
                     done_renders += 1  # seconds each at full size: a line for each
                     say(f"writing outputs: render {done_renders}/{n_renders} (frame {i})")
                     view = render_image(slam.model, slam.beta, torch.as_tensor(T, dtype=torch.float32), intr, cfg.render)
                     save_render(out, i, view, kept[i], t)
+                    if sink is not None and i == slam.order[-1]:
+                        sink.log_map_render(i, view.rgb, view.depth, view.normal, intr, np.asarray(T, dtype=np.float64))
             mesh = None
             if mapped and len(poses):
                 say(f"writing outputs: the mesh ({cfg.mesh.resolution}^3 grid)")
