@@ -6,6 +6,7 @@ Stage 1 (< fine_start): coarse SDF only. Stage 2: coarse + fine. Stage 3
 """
 from __future__ import annotations
 
+import math
 import random
 from dataclasses import dataclass
 
@@ -43,6 +44,7 @@ class Mapper:
         if beta.cfg.beta_mode == "global":
             groups["beta"] = {"params": [beta.log_beta], "lr": cfg.mapping.lr}
         self.group_names = list(groups)
+        self.base_lrs = [g["lr"] for g in groups.values()]
         # fused Adam: one kernel over the ~20M grid parameters, ~5x faster than the default on CPU.
         self.opt = torch.optim.Adam(list(groups.values()), betas=(0.9, 0.99), eps=1e-15, fused=True)
         # Persistent gradient buffers for the grid tables, zeroed in place each iteration:
@@ -73,6 +75,13 @@ class Mapper:
         for p, g in kept:
             p.grad = g
 
+    def _set_lr(self, frac: float, end: float) -> None:
+        """Each group's learning rate at fraction `frac` of a call: a cosine from its base rate
+        to `end` times it."""
+        f = end + (1 - end) * 0.5 * (1 + math.cos(math.pi * frac))
+        for group, base in zip(self.opt.param_groups, self.base_lrs):
+            group["lr"] = base * f
+
     def _eikonal_points(self, n: int, use_fine: bool) -> torch.Tensor | None:
         if n <= 0:
             return None
@@ -84,13 +93,14 @@ class Mapper:
     def optimise(self, frames: list[MapFrame], poses: dict[int, torch.Tensor], iters: int,
                  ba_indices: set[int] = frozenset(), fixed_scale_shift: tuple[float, float] | None = None,
                  progress=None, time_budget_s: float | None = None,
-                 color_start: float | None = None, stop=None) -> MappingStats:
+                 color_start: float | None = None, stop=None, lr_end: float = 1.0) -> MappingStats:
         """Run `iters` iterations over `frames`; poses of `ba_indices` are refined in the
         last stage and written back into `poses`. With `time_budget_s`, the iteration
         count is cut after 3 timed iterations so the schedule fits the budget. The colour
         grids join at fraction `color_start` (default: with the poses, `ba_start`).
         `stop()`, polled before each iteration, ends the call early (stats count the
-        iterations done)."""
+        iterations done). `lr_end`: the scene's learning rates fall from their base to this
+        fraction of it over the call (a cosine); 1: constant."""
         import time
 
         t0 = time.perf_counter()
@@ -110,6 +120,7 @@ class Mapper:
                 per_iter = (time.perf_counter() - t0) / 3
                 iters = max(4, min(iters, int(time_budget_s / per_iter)))
             frac = it / max(iters, 1)
+            self._set_lr(frac, lr_end)
             use_fine = frac >= m.fine_start
             ba = pose_opt is not None and frac >= m.ba_start
             T = [poses[f.index] @ se3_exp(xi[f.index]) if (ba and f.index in xi) else poses[f.index] for f in frames]

@@ -35,6 +35,10 @@ class MapJob:
     label: str
     closing: bool = False
     """The run's last call: the caller waits for it (an executor may give it every core)."""
+    color_start: float | None = None
+    """Fraction of `iters` after which the colour grids join; None: the mapper's default."""
+    lr_end: float = 1.0
+    """The scene's learning rates at the call's end as a fraction of their start."""
 
 
 @dataclass(frozen=True)

@@ -533,8 +533,12 @@ class SlamSystem:
         elif mode == "flow":
             self._align_by_flow(window)
         label = f"{'closing mapping' if closing else 'mapping'} @ frame {current}"
+        final = closing and not bundle_adjust  # the `final_iters` call, poses fixed
+        m = self.cfg.mapping
+        color_start, lr_end = (m.final_color_start, m.final_lr_end_factor) if final else (None, 1.0)
         job = MapJob(current, tuple(window), job_frames([self.frames[k] for k in window]),
-                     {k: self.poses[k].clone() for k in window}, iters, frozenset(ba), label, closing)
+                     {k: self.poses[k].clone() for k in window}, iters, frozenset(ba), label, closing,
+                     color_start, lr_end)
         t0 = time.perf_counter()
         self.mapping.submit(job, self._run_job)
         self.mapping_wait_s += time.perf_counter() - t0
@@ -544,7 +548,8 @@ class SlamSystem:
         """The executor's side (a worker thread in the background): touches only the mapper,
         the live map and the job."""
         stats = self.mapper.optimise(job.frames, job.poses, job.iters, ba_indices=set(job.ba),
-                                     progress=self._progress(job.label), stop=self.should_stop)
+                                     progress=self._progress(job.label), stop=self.should_stop,
+                                     color_start=job.color_start, lr_end=job.lr_end)
         snap = take_snapshot(self.model, self.beta, self.map_version + 1) if self.mapping.background else None
         return MapResult(job, stats, snap)
 

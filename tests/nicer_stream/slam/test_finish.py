@@ -1,7 +1,9 @@
-"""SlamSystem.finish(): the closing mapping call of the schedule; every mapping call's progress callback."""
+"""SlamSystem.finish(): the closing mapping call of the schedule and its own colour start and
+learning rates; every mapping call's progress callback."""
 from dataclasses import replace
 
 from nicer_stream.config import load
+from nicer_stream.mapping.mapper import Mapper
 from nicer_stream.slam.events import MapUpdated
 from nicer_stream.slam.system import SlamSystem
 from sources import open_source
@@ -56,3 +58,21 @@ def test_old_keyframes_are_kept_at_half_resolution(tiny_config):
     assert old and all(slam.frames[k].rgb.shape[0] == full[0] // 2 for k in old)
     assert all(not slam.frames[k].flows for k in old)
     assert all(k not in f.flows for f in slam.frames.values() for k in old)
+
+
+def test_only_the_closing_call_takes_the_final_colour_start_and_learning_rate(tiny_config, monkeypatch):
+    cfg = load("fast", tiny_config)
+    cfg = replace(cfg, mapping=replace(cfg.mapping, final_iters=3, final_color_start=0.0, final_lr_end_factor=0.2))
+    calls = []
+    optimise = Mapper.optimise
+
+    def spy(self, frames, poses, iters, **kw):
+        calls.append((kw.get("color_start"), kw.get("lr_end", 1.0), bool(kw.get("ba_indices"))))
+        return optimise(self, frames, poses, iters, **kw)
+
+    monkeypatch.setattr(Mapper, "optimise", spy)
+    _run(cfg)
+    assert len(calls) == 4  # the first mapping, frames 2 and 4, the closing call
+    assert calls[-1] == (0.0, 0.2, False)
+    assert all(lr_end == 1.0 for _, lr_end, _ in calls[:-1])
+    assert all(color_start is None for color_start, _, _ in calls[1:-1])  # at ba_start, the paper's
