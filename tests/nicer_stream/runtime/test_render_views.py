@@ -45,8 +45,10 @@ def test_a_fresh_process_renders_the_runs_own_views(run_dir, tmp_path):
             # kernels off (cause not found); a sample near the 1e-4 weight cut of the colour pass
             # can turn that into ~2e-5 at a pixel (seen once the activation pass changed the rounding).
             np.testing.assert_allclose(b["rgb"], a["rgb"], atol=5e-5)
-            # float32 depths of 1-3 m composited on different thread counts: relative rounding.
-            np.testing.assert_allclose(b["depth"], a["depth"], rtol=2e-5, atol=1e-5)
+            # float32 depths of 1-3 m composited on different thread counts: relative rounding;
+            # the same sample near the weight cut moves a pixel's depth by up to ~4e-5 m (seen
+            # once `fast`'s closing call changed the map). A wrong pose or map is centimetres off.
+            np.testing.assert_allclose(b["depth"], a["depth"], rtol=2e-5, atol=1e-4)
             assert float(b["timestamp"]) == pytest.approx(t[row])
         compared += 1
     assert compared >= 2
