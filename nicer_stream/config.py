@@ -588,8 +588,8 @@ def fast() -> SlamConfig:
         # to 0.1x and the colour grids join at a quarter (not at `ba_start`). That buys back
         # the map a shorter schedule loses: 200/60/100 instead of 300/80/150, Replica (realistic
         # `oracle`, seed 0) 108 -> 88 s, mesh 3.74 / 2.51 -> 3.65 / 2.30 cm, depth L1 3.80 -> 3.98
-        # cm, PSNR 31.47 -> 30.45 dB; the demo room 185 -> 151 s and better on every metric
-        # (docs/performance.md, stop 50).
+        # cm, PSNR 31.47 -> 30.45 dB (seeds 0-2: 0.5 dB less PSNR, the mesh better); the demo room
+        # 185 -> 151 s, seed 0 better on every metric, seed 1 mixed (docs/performance.md, stop 50).
         mapping=MappingConfig(iters=60, first_iters=200, rays=1024, eikonal_points=256, batch_iters=350,
                               init="two_view", keyframe_every=5, final_iters=100,
                               final_color_start=0.25, final_lr_end_factor=0.1),
