@@ -153,7 +153,8 @@ class MappingConfig:
     """Iterations of the first mapping call (initialisation from the sphere)."""
     final_color_start: float | None = None
     """The `final_iters` call (poses fixed, no local BA): fraction of its iterations after
-    which the colour grids join; None: at `ba_start`, as in every other call."""
+    which the colour grids join; None: at `ba_start`, as in the calls after the first (the
+    first uses `batch_color_start`)."""
     final_lr_end_factor: float = 1.0
     """The `final_iters` call: the scene's learning rates at its end as a fraction of their
     start (a cosine over its iterations); 1: constant, as in every other call."""
