@@ -100,11 +100,11 @@ case "${1:-all}" in
   memory)    # issue 15: RSS at frames 250 / 500 / 1000 of a cheap 1,000-frame run, with the keyframe cap and without
              .venv/bin/python scripts/memory_bench.py --out $OUT/mem_capped
              .venv/bin/python scripts/memory_bench.py --out $OUT/mem_uncapped --mapping-extra 'full_res_keyframes = 0' ;;
-  iters)     # per-iteration costs (mapping, tracking) with FLOPs and sgemm: BASE's code at fast sizes
+  iters)     # per-iteration costs (mapping, tracking) with FLOPs, sgemm and each kind of op against the CPU's limits: BASE's code at fast sizes
              # (needs the worktree of `speedup`), then this tree at fast and paper sizes
              wt=$(realpath "$OUT")/base_worktree
-             [ -e "$wt/.git" ] && PYTHONPATH=$wt .venv/bin/python scripts/iter_bench.py --presets fast --iters 10
-             .venv/bin/python scripts/iter_bench.py --presets fast,paper --iters 10 --profile ;;
+             [ -e "$wt/.git" ] && PYTHONPATH=$wt .venv/bin/python scripts/iter_bench.py --presets fast --iters 10 --floor
+             .venv/bin/python scripts/iter_bench.py --presets fast,paper --iters 10 --profile --floor ;;
   ab)        # BASE's code (default HEAD~1, a worktree in OUTROOT/ab_worktree) and this tree alternated ROUNDS (2) times:
              # per-iteration costs at fast sizes, then one render and the mesh of RUN (a finished run's OUT)
              base=$(git rev-parse --verify "${BASE:-HEAD~1}^{commit}") && mkdir -p "$OUT" && wt=$(realpath "$OUT")/ab_worktree root=$PWD

@@ -7,12 +7,18 @@ needs (counted from the layer shapes) and this CPU's sgemm rate, measured in the
 run's tracking meets has surfaces, where the probes' early stop and the tracker's transmittance
 cut take effect, unlike the one-iteration map of the default (`paper`).
 
-Usage: .venv/bin/python scripts/iter_bench.py [--presets fast,paper] [--iters N] [--profile] [--trained N]
+`--floor` splits a `fast` mapping iteration by kind of op (torch.profiler, self CPU time) and puts
+each kind against this CPU's limits measured in the same run: the products' FLOPs (from their
+shapes) at the sgemm rate, Adam and the gradient zeroing's bytes at the copy bandwidth.
+
+Usage: .venv/bin/python scripts/iter_bench.py [--presets fast,paper] [--iters N] [--profile] [--trained N] [--floor]
 """
 from __future__ import annotations
 
 import argparse
+import collections
 import importlib.util
+import math
 import time
 from dataclasses import replace
 
@@ -39,6 +45,77 @@ def sgemm_gflops(n: int = 2048, reps: int = 5) -> float:
     for _ in range(reps):
         a @ b
     return 2 * n**3 * reps / (time.perf_counter() - t) / 1e9
+
+
+def copy_gbs(mb: int = 128, reps: int = 10) -> float:
+    """Copy bandwidth (bytes read + written per second, GB/s) of a large tensor."""
+    x = torch.empty(mb * 2**18)
+    y = torch.empty_like(x)
+    y.copy_(x)
+    t = time.perf_counter()
+    for _ in range(reps):
+        y.copy_(x)
+    return reps * 2 * x.numel() * 4 / (time.perf_counter() - t) / 1e9
+
+
+PRODUCTS = {"mkldnn::_linear_pointwise", "aten::addmm_", "aten::addmm", "aten::mm", "aten::bmm"}  # leaf ops only
+BULK = {"aten::_fused_adam_", "aten::fill_", "aten::zero_", "aten::cat", "aten::copy_"}
+GRIDS = {"GridInterp", "GridInterpBackward"}
+
+
+def product_flops(key: str, shapes: list) -> float:
+    """FLOPs of one product op from its recorded input shapes."""
+    if key == "mkldnn::_linear_pointwise":
+        return 2 * math.prod(shapes[0][:-1]) * shapes[0][-1] * shapes[1][0]
+    if key == "aten::mm":
+        return 2 * shapes[0][0] * shapes[0][1] * shapes[1][1]
+    if key == "aten::bmm":
+        return 2 * math.prod(shapes[0]) * shapes[1][-1]
+    return 2 * shapes[1][0] * shapes[1][1] * shapes[2][1]  # addmm(_): (bias, m x k, k x n)
+
+
+def floor_table(mapper: Mapper, mfs, poses, iters: int) -> None:
+    """A `fast` mapping iteration by kind of op against this CPU's limits (see the module doc)."""
+    from torch.profiler import ProfilerActivity, profile as prof
+    ba = {mfs[-1].index}
+    mapper.optimise(mfs, poses, 2, ba_indices=ba)
+    t = time.perf_counter()
+    mapper.optimise(mfs, poses, iters, ba_indices=ba)
+    wall = (time.perf_counter() - t) / iters * 1e3
+    stepped, step = [], mapper.opt.step
+
+    def counted_step(*args, **kwargs):  # the parameters Adam updates (frozen groups have no gradient)
+        stepped.append(sum(q.numel() for g in mapper.opt.param_groups for q in g["params"] if q.grad is not None))
+        return step(*args, **kwargs)
+
+    mapper.opt.step = counted_step
+    with prof(activities=[ProfilerActivity.CPU], record_shapes=True) as p:
+        mapper.optimise(mfs, poses, iters, ba_indices=ba)
+    mapper.opt.step = step
+    ms, flops, other = collections.Counter(), 0.0, collections.Counter()
+    for e in p.key_averages(group_by_input_shape=True):
+        kind = ("products" if e.key in PRODUCTS else "bulk" if e.key in BULK
+                else "grids" if e.key in GRIDS else "other")
+        ms[kind] += e.self_cpu_time_total / iters / 1e3
+        if kind == "other":
+            other[e.key] += e.self_cpu_time_total / iters / 1e3
+        if kind == "products":
+            flops += product_flops(e.key, e.input_shapes) * e.count / iters
+    peak, bw = sgemm_gflops(), copy_gbs()
+    n_params = sum(q.numel() for q in mapper.model.parameters())
+    # Adam reads p, g, m, v and writes p, m, v of what it updates; zeroing writes every gradient.
+    adam_mb = (7 * sum(stepped) / len(stepped) + n_params) * 4 / 1e6
+    print(f"\n--- fast mapping iteration against this CPU's limits: {wall:.1f} ms unprofiled, "
+          f"{sum(ms.values()):.1f} ms of ops under the profiler; sgemm {peak:.0f} GFLOP/s, copy {bw:.0f} GB/s, "
+          f"{n_params / 1e6:.1f}M parameters")
+    print("| ops | ms per iteration | work | ms at the limit |")
+    print("|---|---|---|---|")
+    print(f"| products (oneDNN linear, addmm_, mm) | {ms['products']:.1f} | {flops / 1e9:.2f} GFLOP, "
+          f"{flops / 1e6 / max(ms['products'], 1e-9):.0f} GFLOP/s | {flops / 1e6 / peak:.1f} |")
+    print(f"| Adam, zeroing, cat, copy | {ms['bulk']:.1f} | Adam and zeroing {adam_mb:.0f} MB | {adam_mb / bw:.1f} (Adam and zeroing) |")
+    print(f"| grid kernels (gathers, scatters) | {ms['grids']:.1f} | | |")
+    top = ", ".join(f"{k} {v:.1f}" for k, v in other.most_common(6))
+    print(f"| other ops | {ms['other']:.1f} | {len(other)} kinds; the largest (ms): {top} | |")
 
 
 def mlp_macs(dims: list[int]) -> int:
@@ -96,7 +173,7 @@ def warmed_up(cfg, mfs, poses, bound, warmup_iters: int, trained: int = 0) -> tu
     return mapper, Tracker(model, beta, cfg.tracking, cfg.render, 0)
 
 
-def bench(name: str, iters: int, profile: bool, trained: int = 0) -> dict:
+def bench(name: str, iters: int, profile: bool, trained: int = 0, floor: bool = False) -> dict:
     cfg = config_mod.preset(name)
     side = cfg.max_side or 1200
     mfs, poses, bound = load(5, side if name == "fast" else 320)
@@ -110,6 +187,8 @@ def bench(name: str, iters: int, profile: bool, trained: int = 0) -> dict:
     t = time.perf_counter()
     tracker.track(mfs[-1], poses[mfs[-1].index])
     track_s = (time.perf_counter() - t) / (iters + 1)
+    if floor and name == "fast":
+        floor_table(mapper, mfs, poses, iters)
     if profile and name == "fast":
         from torch.profiler import ProfilerActivity, profile as prof
         with prof(activities=[ProfilerActivity.CPU]) as p:
@@ -154,9 +233,10 @@ def main() -> None:
     ap.add_argument("--iters", type=int, default=5)
     ap.add_argument("--profile", action="store_true")
     ap.add_argument("--trained", type=int, default=0, help="mapping iterations at fast's sizes before timing")
+    ap.add_argument("--floor", action="store_true", help="a fast mapping iteration by kind of op against the CPU's limits")
     a = ap.parse_args()
     print(f"torch {torch.__version__}, threads {torch.get_num_threads()}; {', '.join(run_conditions()) or 'default settings'}", flush=True)
-    rows = [bench(p, a.iters if p == "fast" else max(1, a.iters // 5), a.profile, a.trained) for p in a.presets.split(",")]
+    rows = [bench(p, a.iters if p == "fast" else max(1, a.iters // 5), a.profile, a.trained, a.floor) for p in a.presets.split(",")]
     peak = sgemm_gflops()
     print(f"\nsgemm 2048^3: {peak:.1f} GFLOP/s; map fitted for {a.trained} iterations at fast's sizes first")
     print("| preset | mapping s/iter | GFLOP | GFLOP/s | x sgemm | tracking s/iter | GFLOP | GFLOP/s | x sgemm |")
