@@ -16,7 +16,7 @@ $(VENV)/.installed: pyproject.toml
 	$(PY) -m pip install -q -e ".[test]"
 	$(PY) -m nicer_stream.model.grid_kernel
 	$(PY) -m nicer_stream.model.softplus
-	$(PY) -m nicer_stream.model.sdf_grad_assembly
+	$(PY) -m nicer_stream.model.positional
 	$(PY) -m nicer_stream.denormals
 	touch $@
 

@@ -29,7 +29,7 @@ sys.exit(f"imported from outside {sys.argv[1]}: {bad}" if bad else 0)' "$tree")
   rm -rf "$dir" && mkdir -p "$dir"
   echo "== $(git -C "$tree" rev-parse --short HEAD) ($tree) -> $dir"
   kernel_cache "$tree"  # built here, before the clock starts
-  for m in model/grid_kernel model/softplus model/sdf_grad_assembly denormals; do
+  for m in model/grid_kernel model/softplus model/positional denormals; do
     if [ -f "$tree/nicer_stream/$m.py" ]; then (cd "$tree" && PYTHONPATH="$tree" $py -m "nicer_stream.${m//\//.}" >/dev/null); fi
   done
   # shellcheck disable=SC2086  # EXTRA is split into arguments on purpose

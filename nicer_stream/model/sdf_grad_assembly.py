@@ -11,18 +11,16 @@ dL/dJ_i = g u_i[:, P:]^T, dL/du_i[:, P:] = J_i^T g, dL/du_i[:, :P] = the encodin
 applied to g (the same for every part), and dL/d gamma(x) at the sin and cos columns
 -g_k f_l a_cos,lk and g_k f_l a_sin,lk with a = sum_i u_i[:, :P].
 
-`kernels/sdf_grad.cpp` computes both in one pass each over the points; in tensor ops
+`kernels/encoding.cpp` computes both in one pass each over the points; in tensor ops
 (`assemble_reference`, the path on a GPU or without the kernel) the backward alone took four
 (N, 3, F) temporaries and ~8 ms of a `fast` mapping iteration's 110 (`runs/s52/assembly_bench.py`).
 """
 from __future__ import annotations
 
 import torch
+from torch.autograd.function import once_differentiable
 
-from nicer_stream.model.cpp_kernel import CppKernel
-from nicer_stream.model.positional import encoding_grad
-
-_KERNEL = CppKernel("nicer_stream_sdf_grad", "sdf_grad.cpp", ["-O3", "-fopenmp", "-march=native", "-ffp-contract=off"])
+from nicer_stream.model.positional import ENCODING_KERNEL as _KERNEL, encoding_grad, frequencies
 
 Part = tuple[torch.Tensor, torch.Tensor]  # (u (N, P + F), J (N, 3, F))
 
@@ -53,18 +51,18 @@ class SdfGradAssembly(torch.autograd.Function):
         pe = pe.contiguous()
         us = [t.contiguous() for t in flat[0::2]]
         jacs = [t.contiguous() for t in flat[1::2]]
-        ctx.levels = levels
-        ctx.save_for_backward(pe, *us, *jacs)
-        return _KERNEL.module().assemble_forward(pe, us, jacs, levels)
+        freqs = frequencies(levels, pe.dtype)
+        ctx.save_for_backward(pe, freqs, *us, *jacs)
+        return _KERNEL.module().assemble_forward(pe, us, jacs, freqs)
 
     @staticmethod
+    @once_differentiable  # a double backward through it raises rather than being silently wrong
     def backward(ctx, g: torch.Tensor):
-        pe, *rest = ctx.saved_tensors
+        pe, freqs, *rest = ctx.saved_tensors
         k = len(rest) // 2
         us, jacs = rest[:k], rest[k:]
         need = list(ctx.needs_input_grad[2:])
-        out = _KERNEL.module().assemble_backward(pe, us, jacs, g.contiguous(), ctx.levels,
-                                                 ctx.needs_input_grad[0], need)
+        out = _KERNEL.module().assemble_backward(pe, us, jacs, g.contiguous(), freqs, ctx.needs_input_grad[0], need)
         grads = [t if n else None for t, n in zip(out[1:], need)]
         return (out[0] if ctx.needs_input_grad[0] else None), None, *grads
 
@@ -87,7 +85,3 @@ def assemble_sdf_grad(pe: torch.Tensor, levels: int, parts: list[Part]) -> torch
 def kernel_available(t: torch.Tensor) -> bool:
     """True when `t` can go through the compiled kernel."""
     return _KERNEL.available(t)
-
-
-if __name__ == "__main__":  # `make setup` builds the kernel once, so the first run does not wait for it
-    print("sdf-gradient kernel:", "built" if kernel_available(torch.zeros(1)) else "not available (pure-torch path)")

@@ -1,9 +1,14 @@
-"""Positional encoding gamma(x) values and its analytic Jacobian."""
+"""Positional encoding gamma(x) values and its analytic Jacobian; the compiled encoding
+(`kernels/positional.cpp`) against the tensor-op reference."""
 import math
 
+import pytest
 import torch
 
-from nicer_stream.model.positional import encoding_dim, positional_encoding
+from nicer_stream.model.positional import (encoding_dim, kernel_available, positional_encoding,
+                                           positional_encoding_reference)
+
+needs_kernel = pytest.mark.skipif(not kernel_available(torch.zeros(1)), reason="encoding kernel could not be built here")
 
 
 def test_values_match_definition():
@@ -30,7 +35,7 @@ def test_tangent_equals_autograd_jacobian():
     x = torch.rand(4, 3, generator=g, dtype=torch.float64) * 2 - 1
     L = 4
     enc, jac = positional_encoding(x, L, with_tangent=True)
-    assert torch.equal(enc, positional_encoding(x, L))
+    assert torch.allclose(enc, positional_encoding(x, L), atol=1e-12, rtol=0)
     assert jac.shape == (4, 3, encoding_dim(L))
     for n in range(4):
         J = torch.autograd.functional.jacobian(lambda v: positional_encoding(v[None], L)[0], x[n])  # (E, 3)
@@ -49,3 +54,45 @@ def test_encoding_grad_equals_the_jacobian_contraction_and_its_gradients():
     assert torch.allclose(encoding_grad(enc, u, L), ref, atol=1e-12)
     # Second-order terms (x through enc) and the u path, both against autograd over J u.
     assert torch.autograd.gradcheck(lambda x, u: encoding_grad(positional_encoding(x, L), u, L), (x, u))
+
+
+@needs_kernel
+@pytest.mark.parametrize("dtype,tol", [(torch.float32, 2e-6), (torch.float64, 1e-12)])
+@pytest.mark.parametrize("levels", [4, 6])
+def test_kernel_matches_the_reference_values_and_gradient(dtype, tol, levels):
+    g = torch.Generator().manual_seed(7)
+    x = (torch.rand(1001, 3, generator=g, dtype=dtype) * 2 - 1).requires_grad_()
+    w = torch.randn(1001, encoding_dim(levels), generator=g, dtype=dtype)
+    enc = positional_encoding(x, levels)
+    ref = positional_encoding_reference(x, levels)
+    assert type(enc.grad_fn).__name__ == "_EncodingBackward"
+    # sin(2^5 pi x) of a float32 x: the argument is ~100, so a few ulp of it are ~1e-5 absolute.
+    assert torch.allclose(enc, ref, atol=tol * 2**levels, rtol=0)
+    (gx,) = torch.autograd.grad(enc, x, w)
+    (gr,) = torch.autograd.grad(ref, x, w)
+    assert torch.allclose(gx, gr, atol=tol * 4**levels, rtol=tol)
+
+
+@needs_kernel
+def test_kernel_passes_gradcheck_in_float64():
+    x = (torch.rand(6, 3, dtype=torch.float64) * 2 - 1).requires_grad_()
+    assert torch.autograd.gradcheck(lambda v: positional_encoding(v, 3), (x,))
+
+
+@needs_kernel
+def test_a_points_encoding_does_not_depend_on_its_place_in_the_batch():
+    """The vector sin/cos and the padded tail: the same bits wherever a point sits (probes in chunks)."""
+    g = torch.Generator().manual_seed(2)
+    x = torch.rand(37, 3, generator=g) * 2 - 1
+    whole = positional_encoding(x, 6)
+    for lo, hi in ((0, 5), (5, 6), (11, 37), (1, 30)):
+        assert torch.equal(positional_encoding(x[lo:hi], 6), whole[lo:hi])
+
+
+def test_reference_is_taken_where_the_kernel_does_not_apply(monkeypatch):
+    x = torch.rand(4, 2)
+    assert positional_encoding(x, 2).shape == (4, encoding_dim(2, 2))  # d = 2: the reference's
+    monkeypatch.setenv("NICER_STREAM_KERNELS", "0")
+    y = torch.rand(4, 3, requires_grad=True)
+    assert torch.equal(positional_encoding(y, 3), positional_encoding_reference(y, 3))
+    assert type(positional_encoding(y, 3).grad_fn).__name__ != "_EncodingBackward"
