@@ -3,15 +3,19 @@
 torch's C++ extension loader compiles a source once (g++ and ninja; ~25 s) and caches it under
 ~/.cache/torch_extensions, under a name that carries the checkout's path: torch rebuilds a cached
 extension whose source path changed, so two checkouts sharing one name rebuilt each other's at
-every process start. (A build killed midway still leaves a `lock` file there that the next build
-of the same checkout waits on: delete it.) The grid and activation kernels are built with
-`-march=native`, so the name also carries the CPU's model and instruction-set flags: a cache
-shared between machines (a network home directory) never loads a build made for another CPU.
+every process start. The grid and activation kernels are built with `-march=native`, so the name
+also carries the CPU's model and instruction-set flags: a cache shared between machines (a network
+home directory) never loads a build made for another CPU. It carries the source's bytes, the flags
+and torch's version too, so a finished build under that name is the build: it is imported directly.
+torch's `load` takes a `lock` file in the build directory on every first use in a process, even to
+find the build up to date, and a process killed there (Ctrl-C, a stopped run, a test that kills one)
+left it behind: every later process waited on it for ever. `load` now runs only to build.
 Where a kernel cannot be built, on a GPU, for other
 dtypes, or with NICER_STREAM_KERNELS=0, callers take their reference paths (tests compare both)."""
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import logging
 import os
 import platform
@@ -37,23 +41,31 @@ def cpu_identity() -> str:
     return "\n".join(dict.fromkeys(keep)) or f"{platform.machine()} {platform.processor()}"
 
 
-def build_name(name: str, kernel_dir: Path = KERNEL_DIR, cpu: str | None = None) -> str:
-    """The extension's cache name: `name` and a hash of the checkout's kernel directory and of the
-    CPU (`cpu_identity()` unless given)."""
-    key = f"{kernel_dir.resolve()}\n{cpu_identity() if cpu is None else cpu}"
+def build_name(name: str, kernel_dir: Path = KERNEL_DIR, cpu: str | None = None, content: str = "") -> str:
+    """The extension's cache name: `name` and a hash of the checkout's kernel directory, of the
+    CPU (`cpu_identity()` unless given) and of `content` (what the build is made of)."""
+    key = f"{kernel_dir.resolve()}\n{cpu_identity() if cpu is None else cpu}\n{content}"
     return f"{name}_{hashlib.sha1(key.encode()).hexdigest()[:8]}"
+
+
+def build_content(source: Path, cflags: list[str]) -> str:
+    """What a build is made of: the source's bytes (hashed), the flags and torch's version."""
+    return f"{hashlib.sha1(source.read_bytes()).hexdigest()}\n{' '.join(cflags)}\n{torch.__version__}"
 
 
 class CppKernel:
     """One source file under `kernels/`, compiled with `cflags` when first asked for."""
 
     def __init__(self, name: str, source: str, cflags: list[str]) -> None:
-        self.name, self.source, self.cflags = build_name(name), KERNEL_DIR / source, cflags
+        self.source, self.cflags = KERNEL_DIR / source, cflags
+        self.name = build_name(name, content=build_content(self.source, cflags))
         self._module = None
         self._failed = False
 
     def module(self):
         """The compiled module, or None when it cannot be built (warned once)."""
+        if self._module is None and not self._failed:
+            self._module = self._import_built()
         if self._module is None and not self._failed:
             if not self._built_before():
                 # ~30 s of g++ with nothing else printed: say why the run waits
@@ -69,6 +81,29 @@ class CppKernel:
                 log.warning("%s not built (%s): using the slower pure-torch path", self.source.name,
                             str(e).splitlines()[0][:200])
         return self._module
+
+    def _library(self) -> Path | None:
+        """The finished build's shared library under this name, if torch's cache holds one."""
+        try:
+            from torch.utils.cpp_extension import _get_build_directory
+
+            lib = Path(_get_build_directory(self.name, False)) / f"{self.name}.so"
+            return lib if lib.is_file() and lib.stat().st_size > 0 else None
+        except Exception:
+            return None
+
+    def _import_built(self):
+        """The finished build imported without torch's `load` (and its lock), or None (then `load`)."""
+        lib = self._library()
+        if lib is None:
+            return None
+        try:
+            spec = importlib.util.spec_from_file_location(self.name, lib)
+            mod = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(mod)
+            return mod
+        except Exception:  # a truncated or foreign file: let torch's `load` rebuild it
+            return None
 
     def _built_before(self) -> bool:
         """Whether torch's cache already holds a build of this name (True when that cannot be

@@ -1,4 +1,4 @@
-"""The compiled kernels' cache names: one per checkout and CPU, stable within them."""
+"""The compiled kernels' cache names (one per checkout, CPU and build content, stable within them) and loading."""
 from pathlib import Path
 
 from nicer_stream.model.cpp_kernel import KERNEL_DIR, build_name, cpu_identity
@@ -40,3 +40,43 @@ def test_a_first_build_says_why_the_run_waits(tmp_path, monkeypatch, capsys):
     monkeypatch.delattr(ext, "_get_build_directory")  # torch's private helper gone: still built, no message
     assert CppKernel("test_kernel_2", "grid_interp.cpp", []).module() == "module"
     assert capsys.readouterr().err == ""
+
+
+def test_a_finished_build_is_imported_past_a_stale_lock(monkeypatch):
+    """A process killed inside torch's `load` leaves `lock` in the build directory; every later
+    `load` waited on it for ever. A finished build is imported without `load`."""
+    import torch
+    import torch.utils.cpp_extension as ext
+
+    from nicer_stream.model.cpp_kernel import CppKernel
+    from nicer_stream.model.positional import ENCODING_KERNEL
+
+    if ENCODING_KERNEL.module() is None:
+        import pytest
+        pytest.skip("the encoding kernel could not be built here")
+    built = Path(ext._get_build_directory(ENCODING_KERNEL.name, False))
+    lock = built / "lock"
+    lock.touch()
+    try:
+        def no_load(**kw):
+            raise AssertionError("torch's load (and its lock) must not be reached for a finished build")
+
+        monkeypatch.setattr(ext, "load", no_load)
+        fresh = CppKernel("nicer_stream_encoding", "encoding.cpp", ENCODING_KERNEL.cflags)
+        assert fresh.name == ENCODING_KERNEL.name
+        enc = fresh.module().positional_encode(torch.zeros(2, 3), torch.ones(1))
+        assert enc.shape == (2, 9)
+    finally:
+        lock.unlink()
+
+
+def test_the_name_changes_with_the_source_and_the_flags(tmp_path):
+    from nicer_stream.model.cpp_kernel import build_content
+
+    src = tmp_path / "k.cpp"
+    src.write_text("int a;")
+    one = build_name("k", content=build_content(src, ["-O3"]))
+    assert one == build_name("k", content=build_content(src, ["-O3"]))
+    assert one != build_name("k", content=build_content(src, ["-O2"]))
+    src.write_text("int b;")
+    assert one != build_name("k", content=build_content(src, ["-O3"]))
