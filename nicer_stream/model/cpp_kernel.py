@@ -49,8 +49,13 @@ def build_name(name: str, kernel_dir: Path = KERNEL_DIR, cpu: str | None = None,
 
 
 def build_content(source: Path, cflags: list[str]) -> str:
-    """What a build is made of: the source's bytes (hashed), the flags and torch's version."""
-    return f"{hashlib.sha1(source.read_bytes()).hexdigest()}\n{' '.join(cflags)}\n{torch.__version__}"
+    """What a build is made of: the source's bytes (hashed), the flags and torch's version. A
+    missing source gives a name all the same (its build then fails and callers take the reference)."""
+    try:
+        digest = hashlib.sha1(source.read_bytes()).hexdigest()
+    except OSError:
+        digest = "missing"
+    return f"{digest}\n{' '.join(cflags)}\n{torch.__version__}"
 
 
 class CppKernel:
@@ -82,15 +87,21 @@ class CppKernel:
                             str(e).splitlines()[0][:200])
         return self._module
 
-    def _library(self) -> Path | None:
-        """The finished build's shared library under this name, if torch's cache holds one."""
+    def _build_dir(self) -> Path | None:
+        """torch's cache directory for this name, or None when it cannot be told
+        (`_get_build_directory` is torch's private helper)."""
         try:
             from torch.utils.cpp_extension import _get_build_directory
 
-            lib = Path(_get_build_directory(self.name, False)) / f"{self.name}.so"
-            return lib if lib.is_file() and lib.stat().st_size > 0 else None
+            return Path(_get_build_directory(self.name, False))
         except Exception:
             return None
+
+    def _library(self) -> Path | None:
+        """The finished build's shared library under this name, if torch's cache holds one."""
+        d = self._build_dir()
+        lib = None if d is None else d / f"{self.name}.so"
+        return lib if lib is not None and lib.is_file() and lib.stat().st_size > 0 else None
 
     def _import_built(self):
         """The finished build imported without torch's `load` (and its lock), or None (then `load`)."""
@@ -107,14 +118,9 @@ class CppKernel:
 
     def _built_before(self) -> bool:
         """Whether torch's cache already holds a build of this name (True when that cannot be
-        told: `_get_build_directory` is torch's private helper, and the message is only a nicety
-        that must never take the compiled path away)."""
-        try:
-            from torch.utils.cpp_extension import _get_build_directory
-
-            return any(Path(_get_build_directory(self.name, False)).glob("*.so"))
-        except Exception:
-            return True
+        told: the message is only a nicety that must never take the compiled path away)."""
+        d = self._build_dir()
+        return d is None or any(d.glob("*.so"))
 
     def available(self, t: torch.Tensor) -> bool:
         """True when `t` can go through the compiled kernel (CPU, float32/float64, enabled, built)."""

@@ -80,8 +80,3 @@ def assemble_sdf_grad(pe: torch.Tensor, levels: int, parts: list[Part]) -> torch
     if kernel_applies(pe, parts):
         return SdfGradAssembly.apply(pe, levels, *[t for part in parts for t in part])
     return assemble_reference(pe, levels, parts)
-
-
-def kernel_available(t: torch.Tensor) -> bool:
-    """True when `t` can go through the compiled kernel."""
-    return _KERNEL.available(t)

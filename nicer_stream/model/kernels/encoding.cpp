@@ -22,6 +22,18 @@ constexpr int64_t kBlock = 16;    // coordinates per vector block
 constexpr int64_t kChunk = 3072;  // coordinates per parallel chunk of the encoding
 constexpr int64_t kRows = 256;    // rows per parallel chunk of the assembly
 
+// For one point, per (l, k): out_sin = sign g_k f_l src_cos, out_cos = -sign g_k f_l src_sin (the sin and cos
+// columns of the adjoint's pairs; src the encoding or a vector in its layout, P columns).
+template <typename T>
+static inline void pair_columns(const T* src, const T* gk, T sign, const T* freqs, int64_t levels, T* out) {
+  for (int64_t l = 0; l < levels; ++l)
+    for (int k = 0; k < 3; ++k) {
+      const int64_t is = 3 + 3 * l + k, ic = 3 + 3 * levels + 3 * l + k;
+      out[is] = sign * gk[k] * freqs[l] * src[ic];
+      out[ic] = -sign * gk[k] * freqs[l] * src[is];
+    }
+}
+
 // (J_gamma^T a)_k for one point: e its encoding (P,), a (P,).
 template <typename T>
 static inline T encoding_adjoint(const T* e, const T* a, const T* freqs, int64_t levels, int k) {
@@ -158,22 +170,12 @@ static void backward_rows(const T* pe, const std::vector<const T*>& u, const std
       const T gk[3] = {g0, g1, g2};
       // d grad / d a: the same for every part's encoding columns.
       for (int k = 0; k < 3; ++k) ga[k] = gk[k];
-      for (int64_t l = 0; l < levels; ++l)
-        for (int k = 0; k < 3; ++k) {
-          const int64_t is = 3 + 3 * l + k, ic = 3 + 3 * levels + 3 * l + k;
-          ga[is] = gk[k] * freqs[l] * e[ic];
-          ga[ic] = -gk[k] * freqs[l] * e[is];
-        }
-      if (g_pe) {
+      pair_columns(e, gk, T(1), freqs, levels, ga.data());
+      if (g_pe) {  // d grad / d gamma: through the sin and cos the adjoint reads
         encoding_columns(u, Fs, r, P, a.data());
         T* gp = g_pe + r * P;
         for (int k = 0; k < 3; ++k) gp[k] = 0;
-        for (int64_t l = 0; l < levels; ++l)
-          for (int k = 0; k < 3; ++k) {
-            const int64_t is = 3 + 3 * l + k, ic = 3 + 3 * levels + 3 * l + k;
-            gp[is] = -gk[k] * freqs[l] * a[ic];
-            gp[ic] = gk[k] * freqs[l] * a[is];
-          }
+        pair_columns(a.data(), gk, T(-1), freqs, levels, gp);
       }
       for (size_t i = 0; i < u.size(); ++i) {
         const int64_t F = Fs[i], W = P + F;

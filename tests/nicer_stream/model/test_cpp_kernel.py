@@ -80,3 +80,11 @@ def test_the_name_changes_with_the_source_and_the_flags(tmp_path):
     assert one != build_name("k", content=build_content(src, ["-O2"]))
     src.write_text("int b;")
     assert one != build_name("k", content=build_content(src, ["-O3"]))
+
+
+def test_a_missing_source_gives_the_reference_path_not_an_import_error(tmp_path, monkeypatch):
+    from nicer_stream.model.cpp_kernel import CppKernel
+
+    monkeypatch.setenv("TORCH_EXTENSIONS_DIR", str(tmp_path))
+    k = CppKernel("test_missing", "no_such_kernel.cpp", [])  # the constructor runs at import time
+    assert k.module() is None
