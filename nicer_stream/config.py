@@ -498,6 +498,16 @@ class BoundConfig:
     """Multiplier on the prior-derived extent (room for the unseen)."""
     max_depth_m: float = 8.0
     """Depths beyond this are ignored when estimating the bound."""
+    camera_margin: float = 0.25
+    """SLAM with 'auto': the first camera(s) at least this fraction of the half side inside the
+    cube; where one is nearer a face (a first frame's points lie in front of it, so centred on
+    them the cube starts at the camera), the cube slides away from that face, as far as keeps the
+    points (see `points_edge`) inside. 0: centred on the points (before stop 53, when the demo
+    room's back wall fell outside the cube). Mapping with known poses keeps the cube centred on
+    every frame's points."""
+    points_edge: float = 0.05
+    """With `camera_margin`: the points' 1-99 percentile box, grown by this fraction of its
+    longest side, stays inside the cube."""
 
 
 @dataclass(frozen=True)

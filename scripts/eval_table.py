@@ -87,4 +87,8 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    from nicer_stream.errors import UserError
+    try:
+        main()
+    except UserError as err:  # e.g. a run still going: one line, not a traceback
+        raise SystemExit(f"error: {err}") from None

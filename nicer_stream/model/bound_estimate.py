@@ -39,4 +39,10 @@ def metric_points(depth_m: np.ndarray, intr: Intrinsics, T_world_cam: np.ndarray
 def bound_from_depth(depth_m: np.ndarray, intr: Intrinsics, T_world_cam: np.ndarray, cfg: BoundConfig) -> SceneBound:
     """From a metric(-ised) depth map (H, W) of one frame: its points plus the camera
     centre, grown by `cfg.margin`."""
-    return bound_from_points(metric_points(depth_m, intr, T_world_cam, cfg), cfg.margin, "depth_prior")
+    return bound_from_points(metric_points(depth_m, intr, T_world_cam, cfg), cfg.margin, "depth_prior",
+                             *camera_slide(T_world_cam[None, :3, 3], cfg))
+
+
+def camera_slide(cameras: np.ndarray, cfg: BoundConfig) -> tuple[np.ndarray, float, float]:
+    """`bound_from_points`' (cameras, camera_margin, edge) arguments for (M, 3) camera centres."""
+    return cameras, cfg.camera_margin, cfg.points_edge

@@ -45,3 +45,41 @@ def test_scene_sdf_world_is_metres_and_groups_cover_all_parameters():
     ids = [id(p) for g in groups.values() for p in g["params"]]
     assert len(ids) == len(set(ids)) == len(list(model.parameters()))
     assert groups["coarse"]["lr"] == MappingConfig().lr * MappingConfig().lr_geo_grid_factor
+
+
+def _frustum_points(rng, n=5000):
+    """Points a camera at the origin looking along +z sees: z in [1, 5], a widening cone."""
+    z = rng.uniform(1, 5, n)
+    return np.stack([rng.uniform(-0.5, 0.5, n) * z, rng.uniform(-0.4, 0.4, n) * z, z], 1)
+
+
+def test_bound_slides_until_the_camera_has_its_margin():
+    pts = _frustum_points(np.random.default_rng(1))
+    centred = bound_from_points(pts, 1.5, "depth_prior")
+    slid = bound_from_points(pts, 1.5, "depth_prior", cameras=np.zeros((1, 3)), camera_margin=0.25, edge=0.05)
+    half = slid.half_extent
+    assert half == centred.half_extent  # the same resolution per metre
+    # Centred on the points, the camera is nearer the cube's back face than a quarter of the half
+    # side; slid, exactly that far (the least shift), and x, y (already inside) do not move.
+    assert centred.world_min_max()[0][2] > -0.25 * half
+    assert np.isclose(slid.world_min_max()[0][2], -0.25 * half)
+    assert np.allclose(slid.centre[:2], centred.centre[:2])
+    # Without a camera margin the cube stays centred.
+    same = bound_from_points(pts, 1.5, "depth_prior", cameras=np.zeros((1, 3)), camera_margin=0.0)
+    assert same == centred
+
+
+def test_bound_slides_no_further_than_keeps_the_points_inside():
+    pts = _frustum_points(np.random.default_rng(2))
+    plo, phi = np.percentile(pts, 1, axis=0), np.percentile(pts, 99, axis=0)
+    e = 0.05 * (phi - plo).max()
+    # A camera far behind: the cube stops where the grown box would leave it.
+    far = bound_from_points(pts, 1.5, "depth_prior", cameras=np.array([[0.0, 0.0, -50.0]]), camera_margin=0.25,
+                            edge=0.05)
+    lo, hi = far.world_min_max()
+    assert np.isclose(hi[2], phi[2] + e) and (lo <= plo - e + 1e-9).all() and (hi >= phi + e - 1e-9).all()
+    # margin 1: the cube is the box's longest side; there is no room to slide along it.
+    centred = bound_from_points(pts, 1.0, "depth_prior")
+    slid = bound_from_points(pts, 1.0, "depth_prior", cameras=np.zeros((1, 3)), camera_margin=0.25, edge=0.05)
+    longest = int(np.argmax(phi - plo))
+    assert np.isclose(slid.centre[longest], centred.centre[longest])
