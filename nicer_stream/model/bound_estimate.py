@@ -38,11 +38,11 @@ def metric_points(depth_m: np.ndarray, intr: Intrinsics, T_world_cam: np.ndarray
 
 def bound_from_depth(depth_m: np.ndarray, intr: Intrinsics, T_world_cam: np.ndarray, cfg: BoundConfig) -> SceneBound:
     """From a metric(-ised) depth map (H, W) of one frame: its points plus the camera
-    centre, grown by `cfg.margin`."""
-    return bound_from_points(metric_points(depth_m, intr, T_world_cam, cfg), cfg.margin, "depth_prior",
-                             *camera_slide(T_world_cam[None, :3, 3], cfg))
+    centre, grown by `cfg.margin` and slid to leave room behind the camera (`bound_around`)."""
+    return bound_around(metric_points(depth_m, intr, T_world_cam, cfg), T_world_cam[None, :3, 3], cfg, "depth_prior")
 
 
-def camera_slide(cameras: np.ndarray, cfg: BoundConfig) -> tuple[np.ndarray, float, float]:
-    """`bound_from_points`' (cameras, camera_margin, edge) arguments for (M, 3) camera centres."""
-    return cameras, cfg.camera_margin, cfg.points_edge
+def bound_around(points: np.ndarray, cameras: np.ndarray, cfg: BoundConfig, source: str) -> SceneBound:
+    """The SLAM's cube around its first (N, 3) world points, seen from (M, 3) camera centres, with
+    `cfg`'s margin and its room behind the cameras (`bound_from_points`)."""
+    return bound_from_points(points, cfg.margin, source, cameras, cfg.camera_margin, cfg.points_edge)

@@ -25,10 +25,10 @@ from nicer_stream.mapping.depth_shift import shift_from_normals
 from nicer_stream.mapping.mapper import Mapper
 from nicer_stream.mapping.prior_alignment import align_prior_to_map, align_to_widest_partner
 from nicer_stream.mesh.visibility import DepthView
-from nicer_stream.model.bound import SceneBound, bound_from_points
+from nicer_stream.model.bound import SceneBound
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
-from nicer_stream.model.bound_estimate import bound_from_config, bound_from_depth, camera_slide
+from nicer_stream.model.bound_estimate import bound_around, bound_from_config, bound_from_depth
 from nicer_stream.model.geometry import initial_sphere
 from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpdated
 from nicer_stream.slam.map_jobs import InlineMapping, MapJob, MappingExecutor, MapResult, job_frames, take_snapshot
@@ -309,8 +309,7 @@ class SlamSystem:
             self.bound = bound_from_depth(depth_m, mf.intr, T0.cpu().numpy().astype(np.float64), cfg.bound)
         elif points is not None and cfg.bound.mode == "auto":
             cams = np.stack([np.zeros(3), view.T_world_second[:3, 3]])
-            self.bound = bound_from_points(np.concatenate([points, cams]), cfg.bound.margin, "landmarks",
-                                           *camera_slide(cams, cfg.bound))
+            self.bound = bound_around(np.concatenate([points, cams]), cams, cfg.bound, "landmarks")
         else:
             self.bound = bound_from_config(cfg.bound)
         for f in [mf] + ([second] if second is not None else []):

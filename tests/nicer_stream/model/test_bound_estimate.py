@@ -2,7 +2,8 @@
 import numpy as np
 
 from nicer_stream.config import BoundConfig
-from nicer_stream.model.bound_estimate import bound_from_depth
+from nicer_stream.model.bound import bound_from_points
+from nicer_stream.model.bound_estimate import bound_around, bound_from_depth
 from nicer_stream.types import Intrinsics
 
 INTR = Intrinsics(fx=100.0, fy=100.0, cx=31.5, cy=23.5, width=64, height=48)
@@ -26,3 +27,16 @@ def test_the_bound_reaches_behind_the_first_camera_wherever_it_is():
     assert slid.world_min_max()[0][2] < 0.5 - 0.1
     assert slid.world_min_max()[1][2] >= 0.5 + 3.9
     assert slid.source == centred.source == "depth_prior"
+
+
+def test_bound_around_landmarks_uses_the_configured_margins():
+    rng = np.random.default_rng(0)
+    z = rng.uniform(1, 5, 3000)
+    pts = np.stack([rng.uniform(-0.5, 0.5, 3000) * z, rng.uniform(-0.4, 0.4, 3000) * z, z], 1)
+    cams = np.array([[0.0, 0.0, 0.0], [0.2, 0.0, 0.0]])  # a two-view start
+    centred = bound_around(pts, cams, BoundConfig(camera_margin=0.0), "landmarks")
+    assert centred == bound_from_points(pts, 1.5, "landmarks")
+    slid = bound_around(pts, cams, BoundConfig(), "landmarks")
+    assert np.isclose(slid.world_min_max()[0][2], -BoundConfig().camera_margin * slid.half_extent)
+    wider = bound_around(pts, cams, BoundConfig(margin=2.0), "landmarks")
+    assert wider.half_extent > slid.half_extent and wider.source == "landmarks"
