@@ -29,10 +29,8 @@ def test_the_bound_reaches_behind_the_first_camera_wherever_it_is():
     assert slid.source == centred.source == "depth_prior"
 
 
-def test_bound_around_landmarks_uses_the_configured_margins():
-    rng = np.random.default_rng(0)
-    z = rng.uniform(1, 5, 3000)
-    pts = np.stack([rng.uniform(-0.5, 0.5, 3000) * z, rng.uniform(-0.4, 0.4, 3000) * z, z], 1)
+def test_bound_around_landmarks_uses_the_configured_margins(frustum_points):
+    pts = frustum_points(0, 3000)
     cams = np.array([[0.0, 0.0, 0.0], [0.2, 0.0, 0.0]])  # a two-view start
     centred = bound_around(pts, cams, BoundConfig(camera_margin=0.0), "landmarks")
     assert centred == bound_from_points(pts, 1.5, "landmarks")

@@ -1,5 +1,5 @@
 """Positional encoding gamma(x) values and its analytic Jacobian; the compiled encoding
-(`kernels/positional.cpp`) against the tensor-op reference."""
+(`kernels/encoding.cpp`) against the tensor-op reference."""
 import math
 
 import pytest

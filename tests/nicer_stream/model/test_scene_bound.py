@@ -47,14 +47,8 @@ def test_scene_sdf_world_is_metres_and_groups_cover_all_parameters():
     assert groups["coarse"]["lr"] == MappingConfig().lr * MappingConfig().lr_geo_grid_factor
 
 
-def _frustum_points(rng, n=5000):
-    """Points a camera at the origin looking along +z sees: z in [1, 5], a widening cone."""
-    z = rng.uniform(1, 5, n)
-    return np.stack([rng.uniform(-0.5, 0.5, n) * z, rng.uniform(-0.4, 0.4, n) * z, z], 1)
-
-
-def test_bound_slides_until_the_camera_has_its_margin():
-    pts = _frustum_points(np.random.default_rng(1))
+def test_bound_slides_until_the_camera_has_its_margin(frustum_points):
+    pts = frustum_points(1)
     centred = bound_from_points(pts, 1.5, "depth_prior")
     slid = bound_from_points(pts, 1.5, "depth_prior", cameras=np.zeros((1, 3)), camera_margin=0.25, edge=0.05)
     half = slid.half_extent
@@ -69,8 +63,8 @@ def test_bound_slides_until_the_camera_has_its_margin():
     assert same == centred
 
 
-def test_bound_slides_no_further_than_keeps_the_points_inside():
-    pts = _frustum_points(np.random.default_rng(2))
+def test_bound_slides_no_further_than_keeps_the_points_inside(frustum_points):
+    pts = frustum_points(2)
     plo, phi = np.percentile(pts, 1, axis=0), np.percentile(pts, 99, axis=0)
     e = 0.05 * (phi - plo).max()
     # A camera far behind: the cube stops where the grown box would leave it.
