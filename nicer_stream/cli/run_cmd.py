@@ -25,6 +25,7 @@ def run_command(
     realtime: bool = typer.Option(False, "--realtime", help="Play the log at its recorded rate, dropping frames SLAM cannot keep up with."),
     device: str = typer.Option("cpu", "--device", help="torch device, e.g. cpu or cuda."),
     render_every: int = typer.Option(10, "--render-every", help="Render (and evaluate) every N-th frame at the end; their images are kept until then."),
+    max_renders: int = typer.Option(20, "--max-renders", help="At most N of those, spread evenly (a longer log doubles the stride; 0: no cap)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No per-frame lines or mapping progress: errors and the final summary only."),
     live_mesh_every: int = typer.Option(5, "--live-mesh-every", help="With --sink: a coarse mesh every N map updates while the run goes on (0: only the final mesh)."),
     sync: bool = typer.Option(False, "--sync", help="Everything in one thread, in order (deterministic under a seed)."),
@@ -32,7 +33,7 @@ def run_command(
 ) -> None:
     """Track every frame and map keyframes; writes trajectory.tum, mesh.ply, summary.json (+ eval.json with GT)."""
     user_errors(_run)(source, out, preset, config, priors, flow, sink, max_frames, stride, start, drop, max_side, intrinsics,
-                      realtime, device, render_every, live_mesh_every, quiet, sync, mapping_worker)
+                      realtime, device, render_every, max_renders, live_mesh_every, quiet, sync, mapping_worker)
 
 
 def _resolve_sinks(sinks: list[str], out: Path) -> tuple[str, ...]:
@@ -50,7 +51,7 @@ def _resolve_sinks(sinks: list[str], out: Path) -> tuple[str, ...]:
 
 
 def _run(source, out, preset, config, priors, flow, sinks, max_frames, stride, start, drop, max_side, intrinsics, realtime,
-         device, render_every, live_mesh_every, quiet, sync, mapping_worker) -> None:
+         device, render_every, max_renders, live_mesh_every, quiet, sync, mapping_worker) -> None:
     from nicer_stream.cli.run_report import evaluate_and_print
     from nicer_stream.runtime.slam_run import RunRequest, run_slam
     from sources.base import SourceOptions
@@ -59,7 +60,7 @@ def _run(source, out, preset, config, priors, flow, sinks, max_frames, stride, s
                          intrinsics=parse_intrinsics(intrinsics))
     res = run_slam(RunRequest(source=source, out_dir=out, priors=priors, flow=flow, preset=preset, config_file=config,
                               sinks=_resolve_sinks(sinks, out), device=device, realtime=realtime,
-                              render_every=render_every, live_mesh_every=live_mesh_every, quiet=quiet, sync=sync, mapping_worker=mapping_worker,
+                              render_every=render_every, max_renders=max_renders, live_mesh_every=live_mesh_every, quiet=quiet, sync=sync, mapping_worker=mapping_worker,
                               source_opts=opts))
     if res.exit_code:  # stopped or failed: the partial outputs are written; no evaluation
         if res.error:

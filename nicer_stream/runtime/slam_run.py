@@ -23,6 +23,7 @@ from nicer_stream.runtime.sink_worker import SinkWorker
 from nicer_stream.runtime.pacer import Pacer
 from nicer_stream.runtime.prior_stage import PriorStage
 from nicer_stream.runtime.progress import Progress
+from nicer_stream.runtime.render_picker import RenderPicker
 from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_trajectory
 from nicer_stream.runtime.scene_export import MeshAborted, save_render, scene_mesh
 from nicer_stream.runtime.stage_timer import StageTimer
@@ -53,6 +54,10 @@ class RunRequest:
     device: str = "cpu"
     realtime: bool = False
     render_every: int = 10
+    """Render (and evaluate) every N-th frame at the end, and the last one."""
+    max_renders: int = 20
+    """At most this many of those (0: no cap): on longer logs the stride doubles until they fit
+    (`runtime/render_picker.py`), so the end of a run does not grow with its length."""
     quiet: bool = False
     """No per-frame lines and no mapping progress: errors and the final summary only."""
     live_mesh_every: int = 5
@@ -151,6 +156,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
         live = LiveMapOutputs(sink, slam, req.live_mesh_every)
     pacer = Pacer(req.realtime)
     n, intr, kept, last, waiting, error = 0, None, {}, None, {}, None
+    picker = RenderPicker(max(1, req.render_every), max(0, req.max_renders))
     try:
         total = len(source)  # None for streams of unknown length
     except TypeError:
@@ -213,7 +219,10 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                 if e.index in read_at:
                     t_read, steady = read_at.pop(e.index)
                     latency.append((time.perf_counter() - t_read, steady))
-                kept[e.index] = f.rgb if e.index % max(1, req.render_every) == 0 else None
+                keep, released = picker.offer(e.index)
+                kept[e.index] = f.rgb if keep else None
+                for i in released:  # a long log: the stride doubled, their images go
+                    kept[i] = None
                 last = (e.index, f.rgb)
                 lost = f" LOST ({e.lost})" if e.lost else ""
                 secs = f"{e.seconds:.1f} s tracking" if replay else f"{step_s:.1f} s"

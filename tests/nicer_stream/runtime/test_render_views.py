@@ -20,9 +20,16 @@ def run_dir(tmp_path_factory, tiny_toml):
     cfg = root / "tiny.toml"
     cfg.write_text(tiny_toml)
     res = run_slam(RunRequest(source="synthetic:room?frames=7", out_dir=root / "out", priors="oracle:clean",
-                              config_file=str(cfg), render_every=3, sync=True))
+                              config_file=str(cfg), render_every=1, max_renders=2, sync=True))
     assert res.exit_code == 0
     return res.out_dir
+
+
+def test_the_runs_renders_are_capped_and_spread(run_dir):
+    # every frame, at most 2: the stride doubles at frames 2 and 4 (runtime/render_picker.py),
+    # leaving 0 and 4, and the last frame is always rendered
+    names = sorted(p.name for p in (run_dir / od.RENDERS_DIR).glob("*.npz"))
+    assert names == sorted(od.render_name(i) for i in (0, 4, 6))
 
 
 def _cli(*args):
