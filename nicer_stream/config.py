@@ -200,7 +200,14 @@ class MappingConfig:
     in between are tracked once the map exists) or 'auto' ('first_frame' when the first frame
     has a depth prior, else 'two_view')."""
     init_frames: int = 10
-    """'two_view': frames after the first that the second view waits for."""
+    """'two_view' with a depth prior: frames after the first that the second view waits for."""
+    init_max_frames: int = 60
+    """'two_view' without a depth prior (the frontend's start): frames held at most while the
+    frontend's tracks grow to `frontend.init_parallax_deg` of parallax with the first frame. A
+    slow camera or a 30 fps video needs more than `init_frames`: the synthetic room at 300 frames
+    reached it at frame 11, and starting from the first frame alone at 10 cost its first 100
+    frames' map 6x in depth L1 (docs/priors.md, stop 54). Motion that never reaches it (forward
+    motion) starts from the first frame once these are held."""
     batch_iters: int = 2000
     """Iterations of `nicer-stream map` (all frames in one window, known poses)."""
     batch_color_start: float = 0.25

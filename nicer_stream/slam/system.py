@@ -169,7 +169,8 @@ class SlamSystem:
 
     def _waits(self, mf: MapFrame | None) -> bool:
         """Hold frames for the two-view start: until `init_frames` frames follow the first; without
-        a depth prior (the frontend's start) only until the frontend sees enough parallax."""
+        a depth prior (the frontend's start) until the frontend sees enough parallax, at most
+        `init_max_frames`."""
         init = self.cfg.mapping.init
         if init == "first_frame":
             return False
@@ -177,8 +178,10 @@ class SlamSystem:
             if mf is None or (init == "auto" and mf.depth_prior is not None):
                 return False  # 'auto' with a depth prior: the first frame's start
             return mf.depth_prior is not None or self.frontend is not None
-        if self.pending[0].depth_prior is None and mf is not None and self._frontend_view(mf.index) is not None:
-            return False
+        if self.pending[0].depth_prior is None:
+            if mf is not None and self._frontend_view(mf.index) is not None:
+                return False
+            return len(self.pending) < self.cfg.mapping.init_max_frames
         return len(self.pending) < self.cfg.mapping.init_frames
 
     def _frontend_view(self, index: int):

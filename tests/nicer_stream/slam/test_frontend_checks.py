@@ -287,7 +287,7 @@ def test_a_start_without_depth_that_never_reaches_the_parallax_takes_the_widest_
     leave before their parallax grows): the start takes the held frame with the widest parallax
     the fallback accepts, posed in GT's direction of travel from frame 0, rather than the first
     frame alone; with the fallback off (the default) it starts from the first frame alone."""
-    c = replace(cfg, mapping=replace(cfg.mapping, init="two_view", init_frames=4),
+    c = replace(cfg, mapping=replace(cfg.mapping, init="two_view", init_frames=4, init_max_frames=4),
                 frontend=replace(cfg.frontend, init_parallax_deg=90.0, fallback_parallax_deg=fallback_deg))
     src = list(open_source("synthetic:room?frames=60", SourceOptions(max_frames=6, max_side=160)))
     slam = SlamSystem(c)
@@ -304,6 +304,25 @@ def test_a_start_without_depth_that_never_reaches_the_parallax_takes_the_widest_
     rel = np.linalg.inv(src[0].gt_pose) @ src[k].gt_pose
     cos = t @ rel[:3, 3] / np.linalg.norm(t) / np.linalg.norm(rel[:3, 3])
     assert np.degrees(np.arccos(np.clip(cos, -1, 1))) < 10.0
+
+
+@pytest.mark.parametrize("max_frames", [10, 20])
+def test_a_slow_camera_without_depth_waits_past_init_frames_for_its_parallax(cfg, max_frames):
+    """The room at 300 frames (a slow camera): the frontend's tracks reach the start's 2 degrees
+    of parallax a few frames after `init_frames` (10). Held for at most 10, the start gives up and
+    takes the first frame alone (the old rule: its map was 6x worse in depth); held for up to 20,
+    it is a two-view start with the first frame that has the parallax."""
+    c = replace(cfg, mapping=replace(cfg.mapping, init="two_view", init_frames=10, init_max_frames=max_frames))
+    slam = SlamSystem(c)
+    for f in open_source("synthetic:room?frames=300", SourceOptions(max_frames=16, max_side=160)):
+        slam.step(f.without_ground_truth())
+    if max_frames == 10:
+        assert slam.init_note.startswith("two-view start failed"), slam.init_note
+        return
+    assert slam.init_note.startswith("two-view start with frame "), slam.init_note
+    k = int(slam.init_note.split("with frame ")[1].split()[0])
+    assert 10 < k <= 16
+    assert float(slam.init_note.split(" degrees of parallax")[0].split()[-1]) >= c.frontend.init_parallax_deg
 
 
 def test_the_frontend_observes_the_frames_detail_image(cfg):
