@@ -6,6 +6,7 @@ from pathlib import Path
 import typer
 
 from nicer_stream.cli.common import DROP_HELP, parse_drop, parse_intrinsics, user_errors
+from nicer_stream.errors import UserError
 
 
 def run_command(
@@ -56,6 +57,9 @@ def _run(source, out, preset, config, priors, flow, sinks, max_frames, stride, s
     from nicer_stream.runtime.slam_run import RunRequest, run_slam
     from sources.base import SourceOptions
 
+    if render_every < 1 or max_renders < 0:
+        raise UserError(f"--render-every must be at least 1 and --max-renders at least 0 (0: no cap), "
+                        f"got {render_every} and {max_renders}")
     opts = SourceOptions(start=start, stride=stride, drop=parse_drop(drop), max_frames=max_frames, max_side=max_side,
                          intrinsics=parse_intrinsics(intrinsics))
     res = run_slam(RunRequest(source=source, out_dir=out, priors=priors, flow=flow, preset=preset, config_file=config,
