@@ -35,6 +35,9 @@ class SourceOptions:
     detail_side: int | None = None
     """Also keep a grey copy of each image with its longer side up to this many pixels (never above
     the original) where that is larger than the resized image: `Frame.detail`, the frontend's input."""
+    undistort: bool = True
+    """Undo the lens distortion a source knows (sources.undistort); False yields the images as
+    recorded, with the calibration's own K (for writing them out with their distortion)."""
 
     def __post_init__(self) -> None:
         if self.stride < 1 or self.start < 0:
@@ -133,6 +136,9 @@ class FrameSource:
     has_gt_pose: bool = False
     skipped_frames: int = 0
     """Frames that were corrupt or unreadable and were skipped (reported at the end)."""
+    calibration = None
+    """The lens as recorded (sources.undistort.CameraCalibration: K at the input size, distortion)
+    where the source knows it, else None."""
 
     def __init__(self, opts: SourceOptions | None = None) -> None:
         self.opts = opts or SourceOptions()

@@ -1,50 +1,19 @@
-"""Camera calibration (K + lens distortion) from MCAP messages, and undistortion maps.
+"""Camera calibration (K + lens distortion) from MCAP messages, values and `--intrinsics`.
 
 Handles `foxglove.CameraCalibration` (fields `K, D, distortion_model`, upper case)
 and ROS 2 `sensor_msgs/msg/CameraInfo` (fields `k, d, distortion_model`, lower case).
-Distortion models: `plumb_bob` / `rational_polynomial` (OpenCV radial-tangential,
-any number of coefficients cv2 accepts) and `equidistant` (Kannala-Brandt, via
-`cv2.fisheye`). Undistortion keeps the same K, so the output is a pinhole image with
-the calibration's intrinsics (no rectification R, P is not used).
+The models and their removal are in sources.undistort (R and P are not used: the new
+pinhole camera is chosen there).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
-import cv2
 import numpy as np
 
 from nicer_stream.errors import SourceError
-from nicer_stream.types import Intrinsics
 from sources.intrinsics_files import PinholeParams
+from sources.undistort import FISHEYE_MODELS, RADTAN_MODELS, CameraCalibration
 
 CALIBRATION_SCHEMAS = ("foxglove.CameraCalibration", "sensor_msgs/msg/CameraInfo")
-RADTAN_MODELS = ("plumb_bob", "rational_polynomial", "radtan", "brown_conrady", "")
-FISHEYE_MODELS = ("equidistant", "fisheye", "kannala_brandt")
-
-
-@dataclass(frozen=True)
-class CameraCalibration:
-    """Pinhole K plus lens distortion.
-
-    pinhole: fx, fy, cx, cy in pixels at `pinhole.width x pinhole.height` (None: any size).
-    distortion: (N,) float64 coefficients in normalised coordinates, so they do not
-        change when the image is resized; all zero (or empty) means no distortion.
-    model: a name from RADTAN_MODELS or FISHEYE_MODELS.
-    """
-
-    pinhole: PinholeParams
-    distortion: np.ndarray
-    model: str = "plumb_bob"
-    frame_id: str = ""
-
-    @property
-    def is_distorted(self) -> bool:
-        return bool(np.any(self.distortion != 0))
-
-    def intrinsics(self, width: int, height: int) -> Intrinsics:
-        """Intrinsics for an image of `width` x `height` (rescaled if calibrated at another size)."""
-        return self.pinhole.for_image(width, height)
 
 
 def calibration_from_values(
@@ -91,38 +60,6 @@ def calibration_from_message(msg, schema_name: str, origin: str = "") -> CameraC
     else:
         raise ValueError(f"not a calibration schema: {schema_name}")
     return calibration_from_values(k, d, msg.distortion_model, int(msg.width), int(msg.height), frame_id, origin)
-
-
-class Undistorter:
-    """Remaps distorted (H, W, C) images to pinhole images with the same K.
-
-    Maps are built once per image size (from the calibration rescaled to that size).
-    """
-
-    def __init__(self, calib: CameraCalibration) -> None:
-        self.calib = calib
-        self._maps: dict[tuple[int, int], tuple[np.ndarray, np.ndarray]] = {}
-
-    def maps(self, width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
-        """(map1, map2) for cv2.remap at this size: for each output pixel, where to sample."""
-        if (width, height) not in self._maps:
-            K = self.calib.intrinsics(width, height).matrix()
-            D = self.calib.distortion
-            if self.calib.model in FISHEYE_MODELS:
-                # cv2.fisheye takes exactly k1..k4.
-                D4 = np.zeros(4)
-                D4[: min(4, D.size)] = D[:4]
-                m1, m2 = cv2.fisheye.initUndistortRectifyMap(K, D4, np.eye(3), K, (width, height), cv2.CV_32FC1)
-            else:
-                m1, m2 = cv2.initUndistortRectifyMap(K, D, None, K, (width, height), cv2.CV_32FC1)
-            self._maps[(width, height)] = (m1, m2)
-        return self._maps[(width, height)]
-
-    def __call__(self, image: np.ndarray) -> np.ndarray:
-        """Undistort an (H, W, C) image (any dtype cv2.remap takes); pixels seen by no input are 0."""
-        h, w = image.shape[:2]
-        m1, m2 = self.maps(w, h)
-        return cv2.remap(image, m1, m2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
 
 
 def pair_calibration_topic(image_topic: str, image_frame_id: str, calibrations: dict[str, str]) -> str | None:

@@ -4,7 +4,8 @@ The camera topic is the only colour image topic, or `?topic=`; its calibration t
 is paired by namespace / frame_id (sources.mcap_calibration.pair_calibration_topic);
 `--intrinsics` overrides it. Timestamps are the sensor stamps (header.stamp /
 timestamp), `Frame.timestamp_ns` holds them exactly. Distorted images are undistorted
-to the same K. Messages are streamed one at a time, never all loaded.
+to a pinhole camera without invalid border (sources.undistort), whose K the frames
+carry. Messages are streamed one at a time, never all loaded.
 Indexed files are read chunk by chunk in log-time order; index-less or truncated files
 are read linearly from the start, in file order.
 """
@@ -26,10 +27,10 @@ from nicer_stream.types import Frame
 from sources.base import FrameSource, SourceOptions
 from sources.intrinsics_files import MISSING_HINT
 from sources.mcap_calibration import (
-    CALIBRATION_SCHEMAS, CameraCalibration, Undistorter, calibration_from_flag, calibration_from_message,
-    pair_calibration_topic,
+    CALIBRATION_SCHEMAS, calibration_from_flag, calibration_from_message, pair_calibration_topic,
 )
 from sources.mcap_images import IMAGE_SCHEMAS, CorruptImage, decode_image, frame_id, image_kind, stamp_ns
+from sources.undistort import CameraCalibration, Undistorter
 
 log = logging.getLogger(__name__)
 MAGIC = b"\x89MCAP0\r\n"
@@ -168,10 +169,10 @@ class McapSource(FrameSource):
 
     def __init__(self, layout: McapLayout, topic: str, calib: CameraCalibration, opts: SourceOptions) -> None:
         super().__init__(opts)
-        self.layout, self.topic, self.calib = layout, topic, calib
+        self.layout, self.topic, self.calibration = layout, topic, calib
         self.schema = layout.topics[topic]
         self.name = f"{layout.path.stem}{topic}"
-        self.undistort = Undistorter(calib) if calib.is_distorted else None
+        self.undistort = Undistorter(calib, enabled=opts.undistort)
         self.truncated = False
 
     def _frames(self) -> Iterator[Frame]:
@@ -205,10 +206,9 @@ class McapSource(FrameSource):
                     if not warned_stamp:
                         log.warning("%s in %s has no sensor stamps: using log times", self.topic, self.layout.path)
                         warned_stamp = True
-                if self.undistort is not None:
-                    rgb = self.undistort(rgb)
+                rgb = self.undistort(rgb)
                 h, w = rgb.shape[:2]
-                yield Frame(index=kept, timestamp=ns * 1e-9, rgb=rgb, intrinsics=self.calib.intrinsics(w, h),
+                yield Frame(index=kept, timestamp=ns * 1e-9, rgb=rgb, intrinsics=self.undistort.intrinsics(w, h),
                             name=f"{self.topic}#{raw}", timestamp_ns=ns)
                 kept += 1
         self._report(kept, ended)  # only when the iteration ends, not when the consumer stops early

@@ -3,9 +3,9 @@
 Timestamps are the container's presentation times (CAP_PROP_POS_MSEC), in seconds.
 Intrinsics, first found wins: `--intrinsics fx,fy,cx,cy`; `?calib=FILE`
 (sources.calibration_file: intrinsics.txt, OpenCV/ROS YAML, JSON; lens distortion is
-undone); `<video>.intrinsics.txt`, `<stem>.intrinsics.txt` or `intrinsics.txt` next to
-the video; else a guess from a horizontal field of view (`?fov=DEG`, default 60 deg),
-with a warning.
+undone by sources.undistort, and the frames carry its new K); `<video>.intrinsics.txt`,
+`<stem>.intrinsics.txt` or `intrinsics.txt` next to the video; else a guess from a
+horizontal field of view (`?fov=DEG`, default 60 deg), with a warning.
 """
 from __future__ import annotations
 
@@ -21,7 +21,8 @@ from nicer_stream.errors import SourceError
 from nicer_stream.types import Frame, Intrinsics
 from sources.base import FrameSource, SourceOptions
 from sources.calibration_file import read_calibration_file
-from sources.mcap_calibration import CameraCalibration, Undistorter, calibration_from_flag, calibration_from_values
+from sources.mcap_calibration import calibration_from_flag, calibration_from_values
+from sources.undistort import CameraCalibration, Undistorter
 
 log = logging.getLogger(__name__)
 DEFAULT_FOV_DEG = 60.0
@@ -51,9 +52,9 @@ class VideoSource(FrameSource):
 
     def __init__(self, path: Path, calib: CameraCalibration, opts: SourceOptions) -> None:
         super().__init__(opts)
-        self.path, self.calib = path, calib
+        self.path, self.calibration = path, calib
         self.name = path.stem
-        self.undistort = Undistorter(calib) if calib.is_distorted else None
+        self.undistort = Undistorter(calib, enabled=opts.undistort)
 
     def _frames(self) -> Iterator[Frame]:
         cap = cv2.VideoCapture(str(self.path))
@@ -74,11 +75,10 @@ class VideoSource(FrameSource):
                     log.warning("skipping undecodable frame %d of %s", raw, self.path)
                     continue
                 rgb = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB).astype(np.float32) / 255.0
-                if self.undistort is not None:
-                    rgb = self.undistort(rgb)
+                rgb = self.undistort(rgb)
                 h, w = rgb.shape[:2]
                 yield Frame(index=kept, timestamp=t_ms / 1000.0, rgb=rgb,
-                            intrinsics=self.calib.intrinsics(w, h), name=f"{self.path.stem}#{raw}")
+                            intrinsics=self.undistort.intrinsics(w, h), name=f"{self.path.stem}#{raw}")
                 kept += 1
         finally:
             cap.release()

@@ -12,8 +12,10 @@ from nicer_stream.errors import SourceError
 from nicer_stream.types import Intrinsics
 from sources import open_source
 from sources.base import SourceOptions
-from sources.mcap_calibration import Undistorter, calibration_from_values, pair_calibration_topic
+from sources.mcap_calibration import calibration_from_values, pair_calibration_topic
 from sources.mcap_images import CorruptImage, decode_raw
+from sources.undistort import Undistorter
+from tests.sources.lens_fixtures import K_TEST, LENSES, blob, centroid, distorted_pixel, pinhole_pixel
 from tests.sources.mcap_fixtures import foxglove_mcap, replica_frames, ros2_mcap, stamps
 
 
@@ -136,50 +138,13 @@ def test_corrupt_payload_is_skipped_and_counted(clip, tmp_path, caplog):
     assert any("skipped 1 corrupt" in r.getMessage() for r in caplog.records)
 
 
-def blob(width: int, height: int, u: float, v: float, sigma: float = 1.5) -> np.ndarray:
-    """(H, W, 3) float32 Gaussian spot centred at pixel (u, v)."""
-    vv, uu = np.mgrid[0:height, 0:width].astype(np.float64)
-    g = np.exp(-((uu - u) ** 2 + (vv - v) ** 2) / (2 * sigma**2))
-    return np.repeat(g[..., None], 3, axis=2).astype(np.float32)
-
-
-def centroid(img: np.ndarray, r: int = 6) -> np.ndarray:
-    g = img[..., 0].astype(np.float64)
-    v0, u0 = np.unravel_index(np.argmax(g), g.shape)
-    win = g[v0 - r:v0 + r + 1, u0 - r:u0 + r + 1]
-    vv, uu = np.mgrid[v0 - r:v0 + r + 1, u0 - r:u0 + r + 1]
-    return np.array([(uu * win).sum(), (vv * win).sum()]) / win.sum()
-
-
-K_TEST = Intrinsics(100.0, 102.0, 79.5, 59.5, 160, 120)
-IDEAL = np.array([132.0, 98.0])  # where a pinhole camera sees the point
-
-
-def distorted_pixel(model: str, D) -> np.ndarray:
-    ray = np.array([[[(IDEAL[0] - K_TEST.cx) / K_TEST.fx, (IDEAL[1] - K_TEST.cy) / K_TEST.fy, 1.0]]])
-    if model == "equidistant":
-        px, _ = cv2.fisheye.projectPoints(ray, np.zeros(3), np.zeros(3), K_TEST.matrix(), np.asarray(D, float))
-    else:
-        px, _ = cv2.projectPoints(ray, np.zeros(3), np.zeros(3), K_TEST.matrix(), np.asarray(D, float))
-    return px.reshape(2)
-
-
-@pytest.mark.parametrize("model, D", [("plumb_bob", [-0.3, 0.1, 0.002, -0.001, 0.0]),
-                                      ("equidistant", [0.2, -0.05, 0.01, 0.0])])
-def test_undistortion_moves_a_distorted_point_back(model, D):
-    seen = distorted_pixel(model, D)
-    assert np.linalg.norm(seen - IDEAL) > 3.0  # the distortion is not negligible
-    calib = calibration_from_values(K_TEST.matrix().reshape(-1), D, model, 160, 120)
-    out = Undistorter(calib)(blob(160, 120, *seen))
-    assert np.linalg.norm(centroid(out) - IDEAL) < 0.5
-
-
 def test_mcap_camera_info_distortion_is_undone(tmp_path):
-    D = [-0.3, 0.1, 0.002, -0.001, 0.0]
-    img = (blob(160, 120, *distorted_pixel("plumb_bob", D)) * 255).round().astype(np.uint8)
+    model, D = LENSES["barrel"]
+    img = (blob(160, 120, *distorted_pixel(model, D)) * 255).round().astype(np.uint8)
     f = next(iter(open_source(f"mcap:{ros2_mcap(tmp_path / 'x.mcap', [img], K_TEST, kind='rgb8', D=D)}")))
-    assert f.intrinsics == K_TEST
-    assert np.linalg.norm(centroid(f.rgb) - IDEAL) < 0.5
+    new = Undistorter(calibration_from_values(K_TEST.matrix().reshape(-1), D, model, 160, 120)).intrinsics(160, 120)
+    assert f.intrinsics == new and new != K_TEST  # the frames carry the undistorted camera
+    assert np.linalg.norm(centroid(f.rgb) - pinhole_pixel(new)) < 0.5
 
 
 def test_calibration_pairing_rules():

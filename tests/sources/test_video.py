@@ -14,6 +14,7 @@ from nicer_stream.types import Intrinsics
 from sources import open_source
 from sources.base import SourceOptions
 from sources.calibration_file import read_calibration_file
+from sources.undistort import Undistorter
 from sources.video import fov_intrinsics
 from tests.sources.mcap_fixtures import replica_frames, write_mp4
 
@@ -84,7 +85,9 @@ def test_sidecar_and_calib_query(clip, tmp_path):
     calib.write_text(json.dumps({"K": [[340, 0, 319.5], [0, 340, 179.5], [0, 0, 1]], "D": [-0.2, 0, 0, 0],
                                  "width": 640, "height": 360}))
     f = next(iter(open_source(f"video:{path}?calib={calib}")))
-    assert f.intrinsics == Intrinsics(340, 340, 319.5, 179.5, 640, 360).resized(320, 180)
+    lens = read_calibration_file(calib)
+    assert lens.intrinsics(320, 180) == Intrinsics(340, 340, 319.5, 179.5, 640, 360).resized(320, 180)
+    assert f.intrinsics == Undistorter(lens).intrinsics(320, 180)
     plain = next(iter(open_source(f"video:{path}", SourceOptions(intrinsics=INTR))))
     assert np.abs(f.rgb - plain.rgb).mean() > 0.01  # undistortion changed the image
     assert np.abs(f.rgb[85:96, 150:170] - plain.rgb[85:96, 150:170]).mean() < 0.02  # but not the centre
