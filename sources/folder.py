@@ -21,6 +21,7 @@ from nicer_stream.errors import SourceError
 from nicer_stream.types import Frame
 from sources.base import FrameSource, SourceOptions, read_rgb
 from sources.intrinsics_files import MISSING_HINT, PinholeParams, from_options, read_intrinsics_txt
+from sources.undistort import CameraCalibration, Undistorter, pinhole
 
 log = logging.getLogger(__name__)
 
@@ -50,6 +51,8 @@ class ListedFrameSource(FrameSource):
     """Frames listed up-front as files, read lazily one at a time.
 
     `files` are all input frames; start/stride/max_frames select from them.
+    `camera`: pinhole intrinsics, or a calibration with lens distortion: then RGB and GT depth
+    are undistorted (sources.undistort) and the frames carry the undistorted camera's K.
     Unreadable RGB files are skipped (counted in `skipped_frames`, warned);
     unreadable depth gives `gt_depth=None` with a warning.
     """
@@ -57,14 +60,15 @@ class ListedFrameSource(FrameSource):
     def __init__(
         self,
         files: list[FrameFile],
-        params: PinholeParams,
+        camera: PinholeParams | CameraCalibration,
         opts: SourceOptions,
         name: str,
         depth_reader: DepthReader | None = None,
     ) -> None:
         super().__init__(opts)
         self.files = [files[i] for i in opts.selected(len(files))]
-        self.params = params
+        self.calibration = camera if isinstance(camera, CameraCalibration) else pinhole(camera)
+        self.undistort = Undistorter(self.calibration, enabled=opts.undistort)
         self.name = name
         self.depth_reader = depth_reader
         self.has_gt_pose = any(f.gt_pose is not None for f in self.files)
@@ -83,13 +87,14 @@ class ListedFrameSource(FrameSource):
                 log.warning("skipping frame: %s", e)
                 continue
             h, w = rgb.shape[:2]
+            depth = self._depth(f, (h, w))
             yield Frame(
                 index=index,
                 timestamp=f.timestamp,
-                rgb=rgb,
-                intrinsics=self.params.for_image(w, h),
+                rgb=self.undistort(rgb),
+                intrinsics=self.undistort.intrinsics(w, h),
                 gt_pose=None if f.gt_pose is None else f.gt_pose.copy(),
-                gt_depth=self._depth(f, (h, w)),
+                gt_depth=None if depth is None else self.undistort(depth, nearest=True),
                 name=f.rgb_path.stem,
             )
             index += 1

@@ -6,7 +6,8 @@ Formats:
 - `cam_params.json` (NICE-SLAM Replica): `{"camera": {"w", "h", "fx", "fy", "cx", "cy", "scale"}}`,
   `scale` being the depth PNG divisor (value / scale = metres).
 - Published TUM RGB-D values (https://cvg.cit.tum.de/data/datasets/rgbd-dataset/file_formats)
-  for 640x480 images of freiburg1/2/3.
+  for 640x480 images of freiburg1/2/3, with their radial-tangential distortion (fr3's images
+  were undistorted before publication: zero).
 """
 from __future__ import annotations
 
@@ -46,10 +47,16 @@ class PinholeParams:
 
 
 TUM_PUBLISHED: dict[int, PinholeParams] = {
-    # fr1 and fr2 images carry lens distortion that these pinhole values do not model.
     1: PinholeParams(517.3, 516.5, 318.6, 255.3, 640, 480, "published TUM freiburg1"),
     2: PinholeParams(520.9, 521.0, 325.1, 249.7, 640, 480, "published TUM freiburg2"),
     3: PinholeParams(535.4, 539.2, 320.1, 247.6, 640, 480, "published TUM freiburg3"),
+}
+
+TUM_DISTORTION: dict[int, tuple[float, ...]] = {
+    # k1, k2, p1, p2, k3 (OpenCV plumb_bob), from the same page.
+    1: (0.2624, -0.9531, -0.0054, 0.0026, 1.1633),
+    2: (0.2312, -0.7849, -0.0033, -0.0001, 0.9172),
+    3: (0.0, 0.0, 0.0, 0.0, 0.0),
 }
 
 _TUM_NAME = re.compile(r"(?:freiburg|(?<![a-z])fr)_?([123])(?!\d)")
@@ -105,7 +112,7 @@ def find_upwards(start: Path, name: str, levels: int = 2) -> Path | None:
     return None
 
 
-def tum_published(folder_name: str) -> PinholeParams | None:
-    """Published intrinsics if `folder_name` names freiburg1/2/3 (also fr1/fr2/fr3), else None."""
+def tum_camera(folder_name: str) -> int | None:
+    """1, 2 or 3 if `folder_name` names freiburg1/2/3 (also fr1/fr2/fr3), else None."""
     m = _TUM_NAME.search(folder_name.lower())
-    return TUM_PUBLISHED[int(m.group(1))] if m else None
+    return int(m.group(1)) if m else None

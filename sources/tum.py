@@ -7,8 +7,10 @@
 Depth and GT pose are associated to each RGB timestamp by the nearest timestamp
 within 0.02 s; frames without a match get None.
 Intrinsics: `--intrinsics` > `intrinsics.txt` (`fx fy cx cy`) > the published
-values when the folder name says freiburg1/2/3 (fr1/fr2/fr3; fr1 and fr2 images
-are distorted and used as if pinhole) > error.
+values when the folder name says freiburg1/2/3 (fr1/fr2/fr3) > error. The first two
+mean a pinhole camera; the published fr1 and fr2 calibrations carry lens distortion,
+which is undone (sources.undistort: RGB and GT depth, and the frames carry the
+undistorted camera's K).
 """
 from __future__ import annotations
 
@@ -22,7 +24,8 @@ from nicer_stream.errors import SourceError
 from nicer_stream.io.trajectory import read_tum
 from sources.base import FrameSource, SourceOptions, read_depth_png
 from sources.folder import FrameFile, ListedFrameSource, existing_dir
-from sources.intrinsics_files import MISSING_HINT, from_options, read_intrinsics_txt, tum_published
+from sources.intrinsics_files import MISSING_HINT, TUM_DISTORTION, TUM_PUBLISHED, from_options, read_intrinsics_txt, tum_camera
+from sources.undistort import CameraCalibration, pinhole
 
 log = logging.getLogger(__name__)
 
@@ -63,20 +66,20 @@ def associate(query_t: np.ndarray, ref_t: np.ndarray, max_dt: float = MAX_DT) ->
     return np.where(np.abs(ref_t[out] - query_t) <= max_dt, out, -1).astype(np.int64)
 
 
-def resolve_intrinsics(p: Path, opts: SourceOptions):
-    """Intrinsics by the precedence in the module docstring (PinholeParams)."""
+def resolve_calibration(p: Path, opts: SourceOptions) -> CameraCalibration:
+    """The camera by the precedence in the module docstring."""
     params = from_options(opts)
     if params is None and (p / "intrinsics.txt").is_file():
         params = read_intrinsics_txt(p / "intrinsics.txt")
-    if params is None:
-        params = tum_published(p.resolve().name)
-        if params is not None:
-            log.info("%s: using %s intrinsics", p, params.origin)
-    if params is None:
+    if params is not None:
+        return pinhole(params)
+    cam = tum_camera(p.resolve().name)
+    if cam is None:
         raise SourceError(
             f"no intrinsics for {p}: add intrinsics.txt ('fx fy cx cy'), name the folder after freiburg1/2/3, or {MISSING_HINT}"
         )
-    return params
+    log.info("%s: using %s intrinsics and distortion", p, TUM_PUBLISHED[cam].origin)
+    return CameraCalibration(TUM_PUBLISHED[cam], np.asarray(TUM_DISTORTION[cam], dtype=np.float64))
 
 
 def list_frames(p: Path) -> list[FrameFile]:
@@ -114,5 +117,4 @@ def open(path: str, query: dict[str, str], opts: SourceOptions) -> FrameSource:
         raise SourceError(f"tum takes no ?options, got {', '.join(sorted(query))}")
     p = existing_dir(path)
     files = list_frames(p)
-    params = resolve_intrinsics(p, opts)
-    return ListedFrameSource(files, params, opts, name=p.resolve().name, depth_reader=partial(read_depth_png, scale=DEPTH_SCALE))
+    return ListedFrameSource(files, resolve_calibration(p, opts), opts, name=p.resolve().name, depth_reader=partial(read_depth_png, scale=DEPTH_SCALE))

@@ -9,9 +9,11 @@ import pytest
 
 from nicer_stream.errors import SourceError
 from sources import open_source
-from sources.base import SourceOptions
-from sources.intrinsics_files import tum_published
+from nicer_stream.grey import to_grey_u8
+from sources.base import SourceOptions, read_rgb
+from sources.intrinsics_files import TUM_DISTORTION, TUM_PUBLISHED, tum_camera
 from sources.tum import associate
+from sources.undistort import CameraCalibration, Undistorter
 
 
 def gt_rows(tum_dir):
@@ -84,14 +86,70 @@ def test_missing_intrinsics_asks_for_flag(tum_dir, tmp_path):
     assert (k.fx, k.fy, k.cx, k.cy, k.width) == (500, 501, 300, 200, 640)
 
 
-def test_published_intrinsics_from_folder_name(tum_dir, tmp_path):
-    seq = copy_rgb(tum_dir, tmp_path / "rgbd_dataset_freiburg1_xyz")
+def test_published_fr3_calibration_is_pinhole(tum_dir, tmp_path):
+    seq = copy_rgb(tum_dir, tmp_path / "rgbd_dataset_freiburg3_xyz")
     src = open_source(f"tum:{seq}", SourceOptions(max_side=320))
     assert not src.has_gt_pose
-    k = next(iter(src)).intrinsics
-    assert k.width == 320 and k.fx == pytest.approx(517.3 / 2) and k.cx == pytest.approx((318.6 + 0.5) / 2 - 0.5)
-    assert tum_published("fr2_desk").fx == 520.9 and tum_published("tum_fr3_office").fx == 535.4
-    assert tum_published("frame10") is None and tum_published("freiburg12") is None
+    f = next(iter(src))
+    k = f.intrinsics
+    assert k.width == 320 and k.fx == pytest.approx(535.4 / 2) and k.cx == pytest.approx((320.1 + 0.5) / 2 - 0.5)
+    raw = cv2.resize(read_rgb(sorted((seq / "rgb").iterdir())[0]), (320, 240), interpolation=cv2.INTER_AREA)
+    assert np.array_equal(f.rgb, raw)  # fr3 images are published undistorted: unchanged
+    assert tum_camera("fr2_desk") == 2 and tum_camera("tum_fr3_office") == 3
+    assert tum_camera("frame10") is None and tum_camera("freiburg12") is None
+
+
+@pytest.fixture
+def fr1(tum_dir, tmp_path):
+    """A folder named as a freiburg1 sequence: the four fr3 frames, then an all-white frame, and
+    a depth image (a horizontal ramp) for the first frame."""
+    seq = copy_rgb(tum_dir, tmp_path / "rgbd_dataset_freiburg1_x")
+    cv2.imwrite(str(seq / "rgb" / "white.png"), np.full((480, 640, 3), 255, np.uint8))
+    with (seq / "rgb.txt").open("a") as f:
+        f.write("1341847999.000000 rgb/white.png\n")
+    (seq / "depth").mkdir()
+    ramp = np.tile(np.arange(640, dtype=np.uint16) * 50 + 1000, (480, 1))
+    cv2.imwrite(str(seq / "depth" / "d0.png"), ramp)
+    t0 = (seq / "rgb.txt").read_text().split("\n")
+    t0 = next(line.split()[0] for line in t0 if line and line[0] != "#")
+    (seq / "depth.txt").write_text(f"{t0} depth/d0.png\n")
+    return seq, ramp / 5000.0
+
+
+def test_fr1_frames_are_undistorted_without_border(fr1):
+    seq, ramp = fr1
+    lens = Undistorter(CameraCalibration(TUM_PUBLISHED[1], np.asarray(TUM_DISTORTION[1])))
+    new = lens.intrinsics(640, 480)
+    assert abs(new.fx - 517.3) > 10  # the undistorted camera is not the published pinhole
+    src = open_source(f"tum:{seq}", SourceOptions(max_side=320, detail_side=640))
+    frames = list(src)
+    assert len(frames) == 5 and all(f.intrinsics == new.resized(320, 240) for f in frames)
+    raw = read_rgb(sorted((seq / "rgb").glob("1*.png"))[0])
+    straight = lens(raw)
+    assert np.abs(straight - raw).mean() > 0.01
+    assert np.array_equal(frames[0].rgb, cv2.resize(straight, (320, 240), interpolation=cv2.INTER_AREA))
+    # The frontend's image is undistorted too, with the undistorted camera at its size.
+    assert frames[0].detail.intrinsics == new and np.array_equal(frames[0].detail.grey, to_grey_u8(straight))
+    # No pixel the lens did not see: a white input stays white everywhere.
+    assert frames[-1].rgb.min() == 1.0 and frames[-1].detail.grey.min() == 255
+    # GT depth follows the RGB's pixels (nearest: no mixing across depth edges).
+    full = next(iter(open_source(f"tum:{seq}")))
+    assert np.array_equal(full.gt_depth, lens(ramp.astype(np.float32), nearest=True))
+    assert not np.allclose(full.gt_depth, ramp)
+
+
+def test_fr1_raw_frames_and_user_intrinsics_are_not_undistorted(fr1, tum_dir):
+    seq, _ = fr1
+    raw = read_rgb(sorted((seq / "rgb").glob("1*.png"))[0])
+    src = open_source(f"tum:{seq}", SourceOptions(undistort=False))
+    f = next(iter(src))
+    assert np.array_equal(f.rgb, raw) and f.intrinsics == TUM_PUBLISHED[1].for_image(640, 480)
+    assert np.array_equal(src.calibration.distortion, TUM_DISTORTION[1])
+    flag = next(iter(open_source(f"tum:{seq}", SourceOptions(intrinsics=(517.3, 516.5, 318.6, 255.3)))))
+    shutil.copy(tum_dir / "intrinsics.txt", seq)
+    txt = next(iter(open_source(f"tum:{seq}")))
+    for pinhole in (flag, txt):  # the user's intrinsics mean a pinhole camera
+        assert np.array_equal(pinhole.rgb, raw)
 
 
 def test_depth_txt_associated_and_scaled(tum_dir, tmp_path):
