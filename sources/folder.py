@@ -1,7 +1,7 @@
 """`folder:PATH`: a folder of images, and the file-list source the dataset layouts share.
 
 If PATH looks like a known layout it is opened as that layout:
-Replica (`results/frame*.jpg`), TUM (`rgb.txt`), 7-Scenes (`frame-*.color.png`).
+Replica (`results/frame*.jpg`), TUM (`rgb.txt`), 7-Scenes (`frame-*.color.png|jpg`).
 Otherwise every `*.png|*.jpg|*.jpeg` in PATH, sorted naturally (`img2` before
 `img10`), is a frame; intrinsics come from `intrinsics.txt` in PATH or
 `--intrinsics`. No ground truth. Timestamps are frame number / fps, fps from
@@ -148,7 +148,7 @@ def detect_layout(p: Path) -> str | None:
         return "replica"
     if (p / "rgb.txt").is_file():
         return "tum"
-    if any(p.glob("frame-*.color.png")):
+    if any(p.glob("frame-*.color.png")) or any(p.glob("frame-*.color.jpg")):
         return "7scenes"
     return None
 

@@ -3,6 +3,8 @@
 Formats:
 - `intrinsics.txt`: one line `fx fy cx cy` in pixels (`#` starts a comment), for
   the images next to it, at their stored size.
+- `camera-intrinsics.txt` (7-Scenes as KinectFusion tools write it): a 3x3 K, three rows of
+  three numbers.
 - `cam_params.json` (NICE-SLAM Replica): `{"camera": {"w", "h", "fx", "fy", "cx", "cy", "scale"}}`,
   `scale` being the depth PNG divisor (value / scale = metres).
 - Published TUM RGB-D values (https://cvg.cit.tum.de/data/datasets/rgbd-dataset/file_formats)
@@ -15,6 +17,8 @@ import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from nicer_stream.errors import SourceError
 from nicer_stream.types import Intrinsics
@@ -85,6 +89,18 @@ def read_intrinsics_txt(path: str | Path) -> PinholeParams:
     if fx <= 0 or fy <= 0:
         raise SourceError(f"{path}: focal lengths must be positive: fix it or {MISSING_HINT}")
     return PinholeParams(fx, fy, cx, cy, origin=str(path))
+
+
+def read_intrinsics_matrix(path: str | Path) -> PinholeParams:
+    """Parse a 3x3 K written as three rows of three numbers (7-Scenes `camera-intrinsics.txt`)."""
+    path = Path(path)
+    try:
+        K = np.loadtxt(path, dtype=np.float64, ndmin=2)
+    except ValueError:
+        K = np.zeros(0)
+    if K.shape != (3, 3) or K[0, 0] <= 0 or K[1, 1] <= 0 or not np.allclose(K[2], [0, 0, 1]):
+        raise SourceError(f"{path} must hold a 3x3 camera matrix [[fx 0 cx] [0 fy cy] [0 0 1]]: fix it or {MISSING_HINT}")
+    return PinholeParams(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]), origin=str(path))
 
 
 def read_cam_params_json(path: str | Path) -> tuple[PinholeParams, float | None]:

@@ -72,3 +72,53 @@ def test_errors(tmp_path):
         open_source(f"7scenes:{tmp_path / 'x'}")
     with pytest.raises(SourceError, match="frame-NNNNNN.color.png"):
         open_source(f"7scenes:{tmp_path}")
+
+
+@pytest.fixture
+def seven_jpg(tmp_path):
+    """2-frame 7-Scenes folder in the `.color.jpg` layout with a camera-intrinsics.txt (3x3 K);
+    returns (folder, decoded rgb uint8 list, depth mm list, poses)."""
+    seq = tmp_path / "redkitchen"
+    seq.mkdir()
+    rng = np.random.default_rng(1)
+    rgbs, depths, poses = [], [], []
+    for i in range(2):
+        bgr = cv2.GaussianBlur(rng.integers(0, 256, (480, 640, 3), dtype=np.uint8), (7, 7), 0)
+        cv2.imwrite(str(seq / f"frame-{i:06d}.color.jpg"), bgr)
+        mm = rng.integers(500, 4000, (480, 640)).astype(np.uint16)
+        cv2.imwrite(str(seq / f"frame-{i:06d}.depth.png"), mm)
+        T = np.eye(4)
+        T[:3, 3] = [0.1 * i, -0.2, 1.5]
+        np.savetxt(seq / f"frame-{i:06d}.pose.txt", T)
+        rgbs.append(cv2.imread(str(seq / f"frame-{i:06d}.color.jpg"))[..., ::-1])  # as JPEG decoded
+        depths.append(mm)
+        poses.append(T)
+    np.savetxt(seq / "camera-intrinsics.txt", [[580.0, 0, 321.0], [0, 581.0, 239.0], [0, 0, 1]])
+    return seq, rgbs, depths, poses
+
+
+def test_jpg_layout_with_intrinsics_matrix(seven_jpg):
+    seq, rgbs, depths, poses = seven_jpg
+    for uri in (f"7scenes:{seq}", f"folder:{seq}"):
+        frames = list(open_source(uri))
+        assert len(frames) == 2 and [f.name for f in frames] == ["frame-000000.color", "frame-000001.color"]
+        for f, rgb, mm, T in zip(frames, rgbs, depths, poses):
+            np.testing.assert_allclose(f.rgb, rgb.astype(np.float32) / 255, atol=1e-7)
+            np.testing.assert_allclose(f.gt_depth, mm / 1000.0, rtol=1e-6)
+            np.testing.assert_allclose(f.gt_pose, T)
+        k = frames[0].intrinsics
+        assert (k.fx, k.fy, k.cx, k.cy, k.width, k.height) == (580, 581, 321, 239, 640, 480)
+    assert next(iter(open_source(f"7scenes:{seq}", SourceOptions(intrinsics=(500, 500, 320, 240))))).intrinsics.fx == 500
+
+
+def test_jpg_layout_errors(seven_jpg):
+    seq = seven_jpg[0]
+    (seq / "camera-intrinsics.txt").write_text("585 585 320 240\n")
+    with pytest.raises(SourceError, match="3x3") as e:
+        open_source(f"7scenes:{seq}")
+    assert "\n" not in str(e.value)
+    (seq / "camera-intrinsics.txt").unlink()
+    assert next(iter(open_source(f"7scenes:{seq}"))).intrinsics.fx == 585  # the dataset's default
+    cv2.imwrite(str(seq / "frame-000001.color.png"), np.zeros((480, 640, 3), np.uint8))
+    with pytest.raises(SourceError, match="keep one"):
+        open_source(f"7scenes:{seq}")
