@@ -124,6 +124,11 @@ def describe_source(uri: str) -> list[str]:
     k = first.intrinsics
     lines.append(f"size: {first.width} x {first.height}")
     lines.append(f"intrinsics: fx={k.fx:.3f} fy={k.fy:.3f} cx={k.cx:.3f} cy={k.cy:.3f}")
+    lens = getattr(src, "calibration", None)
+    if lens is not None and lens.is_distorted:
+        r = lens.intrinsics(first.width, first.height)
+        lines.append(f"lens: {lens.model} distortion {[round(float(d), 6) for d in lens.distortion]} with recorded "
+                     f"fx={r.fx:.3f} fy={r.fy:.3f} cx={r.cx:.3f} cy={r.cy:.3f}; frames undistorted to the intrinsics above")
     gt_pose = first.gt_pose is not None or bool(getattr(src, "has_gt_pose", False))
     lines.append(f"ground truth: pose {'yes' if gt_pose else 'no'}, depth {'yes' if first.gt_depth is not None else 'no'}")
     return lines
