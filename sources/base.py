@@ -153,3 +153,11 @@ class FrameSource:
     def __len__(self) -> int:
         """Number of frames when known up-front (raises TypeError otherwise)."""
         raise TypeError(f"{type(self).__name__} does not know its length in advance")
+
+    def expected_frames(self) -> int | None:
+        """Frames this source will give after start/stride/drop/max_frames when known up-front
+        (file lists, a video's announced count, an indexed MCAP's message count), else None."""
+        try:
+            return len(self)
+        except TypeError:
+            return None

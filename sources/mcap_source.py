@@ -213,12 +213,36 @@ class McapSource(FrameSource):
                 kept += 1
         self._report(kept, ended)  # only when the iteration ends, not when the consumer stops early
 
+    def expected_frames(self) -> int | None:
+        """The topic's message count from the summary's statistics, after start/stride/drop/
+        max_frames; None for a file without them (index-less, truncated)."""
+        count = topic_message_count(self.layout, self.topic)
+        return None if count is None else len(self.opts.selected(count))
+
     def _report(self, kept: int, ended: bool) -> None:
         if self.skipped_frames:
             log.warning("%s: skipped %d corrupt frame(s) of %s", self.layout.path, self.skipped_frames, self.topic)
         if ended and (self.truncated or not self.layout.complete):
             log.warning("%s is truncated (no MCAP end marker): read %d frame(s) of %s up to the cut; "
                         "re-record or repair it (e.g. `mcap recover`) for the rest", self.layout.path, kept, self.topic)
+
+
+def topic_message_count(layout: McapLayout, topic: str) -> int | None:
+    """Messages on `topic` per the summary's statistics, or None when the file has none."""
+    if not (layout.indexed and layout.complete):
+        return None
+    try:
+        with layout.path.open("rb") as f:
+            summary = make_reader(f).get_summary()
+    except Exception:  # a damaged summary: the length is unknown, the frames still readable
+        return None
+    if summary is None or summary.statistics is None:
+        return None
+    counts = summary.statistics.channel_message_counts
+    ids = [i for i, c in summary.channels.items() if c.topic == topic]
+    if not ids or any(i not in counts for i in ids):
+        return None
+    return sum(counts[i] for i in ids)
 
 
 def open(path: str, query: dict[str, str], opts: SourceOptions) -> McapSource:

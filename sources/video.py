@@ -56,6 +56,16 @@ class VideoSource(FrameSource):
         self.name = path.stem
         self.undistort = Undistorter(calib, enabled=opts.undistort)
 
+    def expected_frames(self) -> int | None:
+        """The container's announced frame count after start/stride/drop/max_frames, or None when
+        it announces none (some containers estimate it: for progress, not for indexing)."""
+        cap = cv2.VideoCapture(str(self.path))
+        try:
+            announced = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        finally:
+            cap.release()
+        return len(self.opts.selected(announced)) if announced > 0 else None
+
     def _frames(self) -> Iterator[Frame]:
         cap = cv2.VideoCapture(str(self.path))
         announced = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)

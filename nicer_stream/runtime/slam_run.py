@@ -22,7 +22,7 @@ from nicer_stream.runtime.mapping_thread import MappingThread, available_cores, 
 from nicer_stream.runtime.sink_worker import SinkWorker
 from nicer_stream.runtime.pacer import Pacer
 from nicer_stream.runtime.prior_stage import PriorStage
-from nicer_stream.runtime.progress import Progress
+from nicer_stream.runtime.progress import Progress, frame_status
 from nicer_stream.runtime.render_picker import RenderPicker
 from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_trajectory
 from nicer_stream.runtime.scene_export import MeshAborted, save_render, scene_mesh
@@ -157,10 +157,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
     pacer = Pacer(req.realtime)
     n, intr, kept, last, waiting, error = 0, None, {}, None, {}, None
     picker = RenderPicker(max(1, req.render_every), max(0, req.max_renders))
-    try:
-        total = len(source)  # None for streams of unknown length
-    except TypeError:
-        total = None
+    total = source.expected_frames()  # None for streams of unknown length
     done, t_start = 0, time.perf_counter()
     reader = source if req.sync else ReadAhead(source)  # read and decoded on its own thread
     failed = False  # an error ended the loop: the mapping call in hand stops too
@@ -172,17 +169,12 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
             print(text, flush=True)
 
     def status() -> str:
-        """[done/total, frames per second, ETA, map version, queue depths] for the per-frame line."""
-        rate = done / max(time.perf_counter() - t_start, 1e-9)
+        """[done/total, %, frames per second, ETA, map version, queue depths] for the per-frame line."""
         queues = ""
         if not req.sync:  # frames read ahead, sink calls waiting, whether mapping is running
             queues = (f", map v{slam.map_version}{'+' if slam.mapping.busy() else ''}, "
                       f"queued {reader.depth} frames / {sink.pending if isinstance(sink, SinkWorker) else 0} sink calls")
-        if total is None:
-            return f"[{done} done, {rate:.2f} fps{queues}]"
-        left = max(total - done, 0)
-        eta = f"{left / rate:.0f} s" if done else "?"  # no pose yet (the two-view start holds frames)
-        return f"[{done}/{total}, {rate:.2f} fps, eta {eta}{queues}]"
+        return f"[{frame_status(done, total, time.perf_counter() - t_start)}{queues}]"
 
     def timed(call):
         """Run one SLAM call -> (events, seconds); its mapping calls' seconds are booked as
@@ -317,6 +309,7 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                        "mapped_frames": sorted(slam.mapped_frames),
                        "frame_indices": list(slam.order), "keyframe_indices": list(slam.keyframes),
                        "map_versions": slam.map_version, "mapping_wait_s": slam.mapping_wait_s,
+                       "tracking_health": slam.health_summary(),
                        "sink_worker_s": sink.seconds if isinstance(sink, SinkWorker) else None,
                        "live_updates_skipped": live.skipped if live is not None else 0,
                        "pose_latency_median_s": lat[0], "pose_latency_p95_s": lat[1],
