@@ -370,6 +370,10 @@ class FrontendConfig:
     """See `max_disagreement_depth_frac`."""
     max_disagreement_deg: float = 2.0
     """Rotation bound of the same check, degrees."""
+    evidence_ratio: float = 0.85
+    """When they disagree, the pose whose photometric loss against the map is below this times
+    the other's is kept; within it, the one nearer the constant-velocity motion
+    (`slam/tracking_policy.py`)."""
 
 
 @dataclass(frozen=True)

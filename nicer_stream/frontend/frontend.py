@@ -84,6 +84,11 @@ class ClassicalFrontend:
         self.own: dict[int, np.ndarray] = {}  # its own PnP poses, by frame
         self.last_ba_rms = float("nan")
 
+    def status_line(self) -> str:
+        """Its state in one line, for logs: landmarks, frames in the window, the last BA's RMS."""
+        return (f"{len(self.landmarks)} landmarks, {len(self.obs)} observed frames, "
+                f"{len(self.posed)} BA frames, BA rms {self.last_ba_rms:.2f} px")
+
     # -- every frame ---------------------------------------------------------------
     def observe(self, index: int, rgb: np.ndarray, intr: Intrinsics) -> None:
         """Follow the features into this frame (`cfg.features`: SIFT matches or KLT tracks). `rgb`:
@@ -136,6 +141,13 @@ class ClassicalFrontend:
         self.own[index] = res[0]
         return FrontendPose(res[0], res[1], int(has.sum()), float(np.median(z)))
 
+    def landmark_observations(self, index: int) -> tuple[np.ndarray, np.ndarray]:
+        """(pixels (P, 2), world points (P, 3)) of observed frame `index`'s tracks that have a landmark."""
+        ids, uv = self.obs[index]
+        has = np.array([i in self.landmarks for i in ids.tolist()], bool)
+        X = np.stack([self.landmarks[i] for i in ids[has].tolist()]) if has.any() else np.zeros((0, 3))
+        return uv[has], X
+
     def two_view(self, first: int, second: int, median_m: float, fallback: bool = False) -> TwoViewTracks | None:
         """A start without depth priors: `second`'s pose with `first` at the identity, from the
         essential matrix of their common tracks, scaled so the median depth of the triangulated
@@ -187,9 +199,13 @@ class ClassicalFrontend:
         return poses[1], X
 
     # -- poses the SLAM decided --------------------------------------------------------
-    def set_pose(self, index: int, T_world_cam: np.ndarray, trusted: bool = True) -> None:
+    def set_pose(self, index: int, T_world_cam: np.ndarray, trusted: bool = True, adopt: bool = False) -> None:
         """Record the SLAM's pose of `index`; a trusted one triangulates new landmarks against
-        the oldest posed frame that saw each track; one that moved far enough runs the local BA."""
+        the oldest posed frame that saw each track; one that moved far enough runs the local BA.
+        Its own PnP pose of the frame is kept over the SLAM's unless `adopt` (the SLAM found its
+        own pose unhealthy: `frontend/health.py`)."""
+        if adopt:
+            self.own.pop(index, None)
         if index not in self.obs or not trusted:
             return
         self.poses[index] = self.own.pop(index, np.asarray(T_world_cam, np.float64))

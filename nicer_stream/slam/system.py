@@ -20,6 +20,7 @@ import torch
 
 from nicer_stream.config import SlamConfig
 from nicer_stream.frontend.frontend import ClassicalFrontend, FrontendPose, TwoViewTracks
+from nicer_stream.frontend.health import FrontendHealth
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.depth_shift import shift_from_normals
 from nicer_stream.mapping.mapper import Mapper
@@ -35,6 +36,7 @@ from nicer_stream.slam.map_jobs import InlineMapping, MapJob, MappingExecutor, M
 from nicer_stream.slam.motion import frontend_disagreement, predict_pose, tracking_failure
 from nicer_stream.slam.pose_corrections import spread_corrections
 from nicer_stream.slam.stereo_priors import StereoPriors, fusion_params
+from nicer_stream.slam.tracking_policy import DisagreementStreaks, judge_disagreement
 from nicer_stream.slam.two_view import TwoView, two_view_from_tracks, two_view_init
 from nicer_stream.slam.window import ba_frames, select_window
 from nicer_stream.tracking.flow_init import pose_from_flows
@@ -131,6 +133,10 @@ class SlamSystem:
         self._frontend_at: dict[int, FrontendPose] = {}  # the frontend's estimate each frame started from
         self._keyframe_owed = False  # a keyframe slot's frame failed its check (`tracking.refine`)
         self._halved: set[int] = set()  # keyframes kept at half resolution (`full_res_keyframes`)
+        self.health = FrontendHealth()  # the frontend's own checks of its poses
+        self._distrusted: set[int] = set()  # frames whose frontend pose failed them
+        self.verdicts = {"map": 0, "frontend": 0, "lost": 0}  # disagreements settled by evidence
+        self.disagreements = DisagreementStreaks()
 
     # -- per frame -------------------------------------------------------------------
     def step(self, frame: Frame, priors: Priors | None = None) -> list[Event]:
@@ -435,11 +441,14 @@ class SlamSystem:
             self._unrefined.add(mf.index)
             return FrameTracked(mf.index, mf.timestamp, T_pred.detach().double().cpu().numpy(), math.nan, 0.0)
         res = self.tracker.track(mf, T_pred)
-        reason = self._refinement_failure(res, T_pred, history[-1], front)
+        reason = tracking_failure(res.T_world_cam, T_pred, res.loss, self.recent_losses, self.cfg.tracking)
         if reason is None and front is None and self.frontend is not None and len(self.keyframes) > 2:
             log.info("frame %d: the frontend has no pose (too few tracked landmarks)", mf.index)
-        # On a detection the frontend's pose (else the motion model's) is kept.
         T = T_pred if reason else res.T_world_cam
+        if reason is None and front is not None:
+            T, reason = self._settle_disagreement(mf.index, res, T_pred, predict_pose(history, "constant_velocity"),
+                                                  history[-1], front)
+        # On a detection the frontend's pose (else the motion model's) is kept.
         if reason and front is not None:
             self._frontend_kept.add(mf.index)  # its own pose: consistent with its landmarks
         if reason and front is not None and self.cfg.tracking.rejected_keyframe == "frontend" and self._keyframe_due(n):
@@ -453,6 +462,26 @@ class SlamSystem:
             self.recent_losses = (self.recent_losses + [res.loss])[-10:]
         self.poses[mf.index] = T.detach()
         return FrameTracked(mf.index, mf.timestamp, T.detach().double().cpu().numpy(), res.loss, res.seconds, reason)
+
+    def _settle_disagreement(self, index: int, res, T_front: torch.Tensor, T_motion: torch.Tensor,
+                             T_prev: torch.Tensor, front: FrontendPose) -> tuple[torch.Tensor, str | None]:
+        """The refined pose `res` against the frontend's `T_front` (the tracker's start): when they
+        disagree beyond `frontend.max_disagreement_*`, the pose the evidence favours
+        (`tracking_policy.judge_disagreement`); (pose, reason the frame is not trusted or None)."""
+        gap = frontend_disagreement(res.T_world_cam, T_front, T_prev, front.median_depth, self.cfg.frontend)
+        if self.disagreements.observe(index, gap is not None):
+            log.warning("frame %d: the frontend and the map disagree on %d refined frames in a row", index,
+                        self.disagreements.run)
+        if gap is None:
+            return res.T_world_cam, None
+        v = judge_disagreement(res.loss, res.initial_loss, res.T_world_cam, T_front, T_motion, self.recent_losses,
+                               self.cfg.tracking.loss_jump, self.cfg.frontend.evidence_ratio)
+        self.verdicts[v.keep] += 1
+        log.info("frame %d: %s; %s: %s pose kept", index, gap, v.why, v.keep if v.keep != "lost" else "no")
+        if v.keep == "map":
+            self._distrusted.add(index)  # the frontend adopts the map's pose of this frame
+            return res.T_world_cam, None
+        return T_front, (gap if v.keep == "frontend" else v.why)
 
     def _refinement_failure(self, res, T_pred: torch.Tensor, T_prev: torch.Tensor,
                             front: FrontendPose | None) -> str | None:
@@ -474,15 +503,27 @@ class SlamSystem:
             self.frontend_seconds += time.perf_counter() - t0
 
     def _frontend_estimate(self, index: int, T_guess: torch.Tensor) -> FrontendPose | None:
+        """The frontend's pose of `index`, or None when it has none or its health check fails
+        (`frontend/health.py`: the frame is then tracked against the map from the motion model)."""
         if self.frontend is None:
             return None
         with self._frontend_timer():
-            return self.frontend.estimate(index, T_guess.double().cpu().numpy())
+            front = self.frontend.estimate(index, T_guess.double().cpu().numpy())
+            ids, uv = self.frontend.obs[index]
+            luv, X = self.frontend.landmark_observations(index)
+            reports = self.health.check(index, None if front is None else front.T_world_cam, ids, uv, luv, X,
+                                        self.frontend.intr, None if front is None else front.median_depth)
+        for r in reports:
+            log.warning("%s", r)
+        if front is not None and any(r.kind != "lost" for r in reports):
+            self._distrusted.add(index)
+            return None
+        return front
 
     def _frontend_pose(self, index: int, T: torch.Tensor, trusted: bool) -> None:
         if self.frontend is not None:
             with self._frontend_timer():
-                self.frontend.set_pose(index, T.double().cpu().numpy(), trusted)
+                self.frontend.set_pose(index, T.double().cpu().numpy(), trusted, adopt=index in self._distrusted)
 
     def _flow_init(self, mf: MapFrame, T_prev: torch.Tensor) -> torch.Tensor:
         """PnP pose from the stored frames' flows to `mf` (else `T_prev`)."""
@@ -629,6 +670,14 @@ class SlamSystem:
                     f.flows.pop(k, None)
 
     # -- results ---------------------------------------------------------------------
+    def health_summary(self) -> dict:
+        """What went wrong in tracking, for `summary.json`: the frontend's health reports by kind
+        (and the first 100), the disagreements settled by evidence, the disagreement streaks."""
+        return {"frontend_reports": self.health.counts(),
+                "frontend_report_lines": [str(r) for r in self.health.reports[:100]],
+                "disagreements_kept": dict(self.verdicts),
+                "disagreement_streaks": [{"first_frame": a, "frames": n} for a, n in self.disagreements.streaks]}
+
     def trajectory(self) -> tuple[list[float], list[np.ndarray]]:
         """(timestamps, T_world_cam float64) of every frame so far, in input order: the frames that
         hold the frontend's pose moved with the map's corrections of the keyframes around them

@@ -1,0 +1,75 @@
+"""The classical frontend as a visual odometry on its own (no map): the two-view start, then
+each frame's PnP pose, trusted and triangulated from. What the SLAM's poses start from, and what
+`scripts/frontend_bench.py` measures. Poses are T_world_cam (4, 4) float64, the first frame of
+the start at the identity, the unit set by `median_m` (the first view's median tracked depth)."""
+from __future__ import annotations
+
+import numpy as np
+
+from nicer_stream.config import FrontendConfig
+from nicer_stream.frontend.frontend import ClassicalFrontend
+from nicer_stream.types import Intrinsics
+
+
+def constant_velocity(T1: np.ndarray, T0: np.ndarray) -> np.ndarray:
+    """The next T_world_cam after T0 then T1 at the same relative motion (camera frame)."""
+    return T1 @ np.linalg.inv(T0) @ T1
+
+
+class FrontendOdometry:
+    """Call `step` on every frame in input order; `poses` holds every frame placed so far and
+    `reports` the frames it could not place (with the reason)."""
+
+    def __init__(self, cfg: FrontendConfig, median_m: float = 2.0, init_max_frames: int = 60) -> None:
+        self.frontend = ClassicalFrontend(cfg)
+        self.median_m, self.init_max_frames = median_m, init_max_frames
+        self.held: list[int] = []
+        self.poses: dict[int, np.ndarray] = {}
+        self.order: list[int] = []
+        self.reports: list[str] = []
+
+    def step(self, index: int, image: np.ndarray, intr: Intrinsics) -> None:
+        """Observe frame `index` ((H, W, 3) float RGB in [0, 1] or (H, W) uint8 grey) and place it."""
+        self.frontend.observe(index, image, intr)
+        if not self.poses:
+            self._start(index)
+            return
+        self._place(index)
+
+    def _start(self, index: int) -> None:
+        self.held.append(index)
+        if len(self.held) < 2:
+            return
+        view = self.frontend.two_view(self.held[0], index, self.median_m)
+        if view is None:
+            if len(self.held) >= self.init_max_frames:
+                self.reports.append(f"frame {self.held[0]}: no two-view start within {self.init_max_frames} frames")
+                self.held = self.held[len(self.held) // 2:]
+            return
+        first, held = self.held[0], self.held[1:-1]
+        self.held = []
+        for k, T in ((first, np.eye(4)), (index, view.T_world_second)):
+            self.poses[k] = T
+            self.frontend.set_pose(k, T)
+        self.order = [first]
+        for k in held:
+            self._place(k)
+        self.order.append(index)
+
+    def _place(self, index: int) -> None:
+        prev = [self.poses[k] for k in self.order[-2:]]
+        guess = constant_velocity(prev[1], prev[0]) if len(prev) == 2 else prev[-1]
+        est = self.frontend.estimate(index, guess)
+        if est is None:
+            self.reports.append(f"frame {index}: no PnP pose ({self.frontend.status_line()})")
+            self.poses[index] = guess
+            self.frontend.set_pose(index, guess, trusted=False)
+        else:
+            self.poses[index] = est.T_world_cam
+            self.frontend.set_pose(index, est.T_world_cam)
+        self.order.append(index)
+
+    def finish(self) -> None:
+        """Frames still held when the log ended have no pose."""
+        if self.held:
+            self.reports.append(f"frames {self.held[0]}-{self.held[-1]}: the log ended before a two-view start")
