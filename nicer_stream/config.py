@@ -172,10 +172,24 @@ class MappingConfig:
     """Colour grid learning-rate factor."""
     lr_pose: float = 1e-3
     """Learning rate of window poses during local BA."""
+    lr_brightness: float = 1e-2
+    """Learning rate of the frames' affine brightness (a, b) (with `loss.affine_brightness`)."""
     every: int = 5
     """Map every this many frames."""
     keyframe_every: int = 10
-    """Add a keyframe every this many frames."""
+    """Add a keyframe every this many frames (`keyframes = "stride"`)."""
+    keyframes: str = "stride"
+    """'stride': a keyframe every `keyframe_every` frames, a mapping call every `every`; 'view': a
+    keyframe when the view has changed (the keyframe_* thresholds below, `slam/keyframes.py`) and
+    a mapping call at each keyframe, so mapping grows with what the camera saw, not with frames."""
+    keyframe_min_overlap: float = 0.6
+    """'view': a keyframe once fewer than this share of the last keyframe's tracks are still seen."""
+    keyframe_max_baseline: float = 0.1
+    """'view': ... or the camera moved this fraction of the scene's median depth from it."""
+    keyframe_max_rotation_deg: float = 15.0
+    """'view': ... or turned this many degrees from it."""
+    keyframe_max_gap_s: float = 1.0
+    """'view': ... or this many seconds passed (a camera that keeps changing slowly)."""
     full_res_keyframes: int = 64
     """Keyframes kept at full resolution in RAM (the newest, and the first); older ones are
     kept at half resolution without their flows (`MapFrame.halved`: ~1/6 of the memory), so a

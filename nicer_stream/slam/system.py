@@ -36,6 +36,7 @@ from nicer_stream.slam.map_jobs import InlineMapping, MapJob, MappingExecutor, M
 from nicer_stream.slam.motion import frontend_disagreement, predict_pose, tracking_failure
 from nicer_stream.slam.pose_corrections import spread_corrections
 from nicer_stream.slam.stereo_priors import StereoPriors, fusion_params
+from nicer_stream.slam.keyframes import KeyframeRule, KeyframeSelector
 from nicer_stream.slam.tracking_policy import DisagreementStreaks, judge_disagreement
 from nicer_stream.slam.two_view import TwoView, two_view_from_tracks, two_view_init
 from nicer_stream.slam.window import ba_frames, select_window
@@ -79,6 +80,8 @@ class SlamSystem:
             raise UserError(f"mapping.init must be first_frame, two_view or auto, got {cfg.mapping.init!r}")
         if cfg.tracking.frontend not in ("classical", "none", "auto"):
             raise UserError(f"tracking.frontend must be classical, none or auto, got {cfg.tracking.frontend!r}")
+        if cfg.mapping.keyframes not in ("stride", "view"):
+            raise UserError(f"mapping.keyframes must be stride or view, got {cfg.mapping.keyframes!r}")
         if cfg.tracking.refine not in ("all", "keyframes"):
             raise UserError(f"tracking.refine must be all or keyframes, got {cfg.tracking.refine!r}")
         if cfg.tracking.rejected_keyframe not in ("pass", "frontend"):
@@ -134,6 +137,12 @@ class SlamSystem:
         self._keyframe_owed = False  # a keyframe slot's frame failed its check (`tracking.refine`)
         self._halved: set[int] = set()  # keyframes kept at half resolution (`full_res_keyframes`)
         self.health = FrontendHealth()  # the frontend's own checks of its poses
+        m = cfg.mapping
+        self.keyframe_view = KeyframeSelector(KeyframeRule(
+            m.keyframe_min_overlap, m.keyframe_max_baseline, m.keyframe_max_rotation_deg,
+            m.keyframe_max_gap_s)) if m.keyframes == "view" else None
+        self._kf_reason: dict[int, str | None] = {}  # view keyframes: decided, not yet recorded
+        self._scene_depth: float | None = None  # the frontend's latest median landmark depth
         self._distrusted: set[int] = set()  # frames whose frontend pose failed them
         self.verdicts = {"map": 0, "frontend": 0, "lost": 0}  # disagreements settled by evidence
         self.disagreements = DisagreementStreaks()
@@ -222,7 +231,9 @@ class SlamSystem:
         self.order.append(i)
         self.timestamps[i] = frame.timestamp
         self._store(mf)
-        is_kf = self._keyframe_due(len(self.order))
+        if self.keyframe_view is not None and i not in self._kf_reason:  # not tracked (start, replay)
+            self._decide_keyframe(i, self.poses[i], frame.timestamp, None)
+        is_kf = self._keyframe_due(len(self.order), i)
         # A frame whose pose is not trusted never becomes a keyframe nor starts a mapping call.
         trusted = i not in self.lost_frames
         # With keyframe-only refinement a failed slot passes to the next frame, which is then
@@ -233,7 +244,9 @@ class SlamSystem:
             self.keyframes.append(i)
             events.append(KeyframeAdded(i))
             self._cap_keyframes()
-        due = self._mapping_slot(len(self.order))
+        if is_kf and trusted:  # (the first frame was made a keyframe when it was held)
+            self._keyframe_taken(i, frame.timestamp)
+        due = self._mapping_slot(len(self.order)) or (self.keyframe_view is not None and is_kf and len(self.order) > 1)
         if trusted and (due or self._map_due):
             events += self._collect()  # a call that has just finished frees the worker
             if self.mapping.busy():  # the worker is still on the last call: map at the next frame
@@ -247,13 +260,34 @@ class SlamSystem:
         """True when the n-th frame in order (1-based) is due to become a keyframe."""
         return n % self.cfg.mapping.keyframe_every == 1 or self.cfg.mapping.keyframe_every == 1
 
-    def _keyframe_due(self, n: int) -> bool:
-        """True when the n-th frame in order is a keyframe slot or takes a failed slot's place."""
+    def _keyframe_due(self, n: int, index: int) -> bool:
+        """True when frame `index`, the n-th in order, is a keyframe slot (or, with view keyframes,
+        its view has changed) or takes a failed slot's place."""
+        if self.keyframe_view is not None:
+            return self._kf_reason.get(index) is not None or self._keyframe_owed
         return self._keyframe_slot(n) or self._keyframe_owed
 
     def _mapping_slot(self, n: int) -> bool:
-        """True when the n-th frame in order (1-based) is due to start a mapping call."""
-        return n > 1 and (n - 1) % self.cfg.mapping.every == 0
+        """True when the n-th frame in order (1-based) is due to start a mapping call by the
+        frame count (view keyframes: never; each keyframe starts one)."""
+        return self.keyframe_view is None and n > 1 and (n - 1) % self.cfg.mapping.every == 0
+
+    def _decide_keyframe(self, index: int, T: torch.Tensor | np.ndarray, timestamp: float, depth: float | None) -> None:
+        """View keyframes: whether frame `index` (its pose estimate T, the scene's median depth or
+        None) has seen enough change since the last keyframe; the reason is kept."""
+        ids = self.frontend.obs[index][0] if self.frontend is not None and index in self.frontend.obs else None
+        depth = depth or self._scene_depth
+        T = T.double().cpu().numpy() if isinstance(T, torch.Tensor) else T
+        self._kf_reason[index] = self.keyframe_view.decide(ids, T, timestamp, depth)
+
+    def _keyframe_taken(self, index: int, timestamp: float) -> None:
+        if self.keyframe_view is None:
+            return
+        ids = self.frontend.obs[index][0] if self.frontend is not None and index in self.frontend.obs else None
+        reason = self._kf_reason.get(index) or "a failed keyframe's place"
+        self.keyframe_view.taken(index, ids, self.poses[index].double().cpu().numpy(), timestamp, reason)
+        for k in [k for k in self._kf_reason if k <= index]:
+            del self._kf_reason[k]  # decided: bounded memory
 
     def _refine_unrefined_last(self) -> list[Event]:
         """`refine = 'keyframes'`: the closing call maps the latest frame, so its frontend pose
@@ -434,7 +468,11 @@ class SlamSystem:
         elif init == "flow":
             T_pred = self._flow_init(mf, T_pred)
         n = len(self.order) + 1
-        if (front is not None and self.cfg.tracking.refine == "keyframes" and not self._keyframe_due(n)
+        if front is not None:
+            self._scene_depth = front.median_depth
+        if self.keyframe_view is not None:
+            self._decide_keyframe(mf.index, T_pred, mf.timestamp, front.median_depth if front is not None else None)
+        if (front is not None and self.cfg.tracking.refine == "keyframes" and not self._keyframe_due(n, mf.index)
                 and not self._mapping_slot(n)):
             # Neither a keyframe nor mapped from: the frontend's pose stands.
             self.poses[mf.index] = T_pred.detach()
@@ -451,7 +489,7 @@ class SlamSystem:
         # On a detection the frontend's pose (else the motion model's) is kept.
         if reason and front is not None:
             self._frontend_kept.add(mf.index)  # its own pose: consistent with its landmarks
-        if reason and front is not None and self.cfg.tracking.rejected_keyframe == "frontend" and self._keyframe_due(n):
+        if reason and front is not None and self.cfg.tracking.rejected_keyframe == "frontend" and self._keyframe_due(n, mf.index):
             log.warning("frame %d: refinement rejected (%s): the keyframe keeps the frontend's pose", mf.index, reason)
             reason = None  # not lost: the frame stays a keyframe (its loss does not enter the running median)
         elif reason:
@@ -676,7 +714,9 @@ class SlamSystem:
         return {"frontend_reports": self.health.counts(),
                 "frontend_report_lines": [str(r) for r in self.health.reports[:100]],
                 "disagreements_kept": dict(self.verdicts),
-                "disagreement_streaks": [{"first_frame": a, "frames": n} for a, n in self.disagreements.streaks]}
+                "disagreement_streaks": [{"first_frame": a, "frames": n} for a, n in self.disagreements.streaks],
+                "keyframe_reasons": ({str(k): r for k, r in self.keyframe_view.reasons.items()}
+                                     if self.keyframe_view is not None else "every mapping.keyframe_every frames")}
 
     def trajectory(self) -> tuple[list[float], list[np.ndarray]]:
         """(timestamps, T_world_cam float64) of every frame so far, in input order: the frames that
