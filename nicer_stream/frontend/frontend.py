@@ -83,6 +83,9 @@ class ClassicalFrontend:
         self.posed: list[int] = []  # the bundle adjustment's frames, in the order they were posed
         self.own: dict[int, np.ndarray] = {}  # its own PnP poses, by frame
         self.last_ba_rms = float("nan")
+        # Frames whose observations outlive the window: the first view of a start still waiting
+        # for its second (a slow camera needs more frames than the window holds).
+        self.pinned: set[int] = set()
 
     def status_line(self) -> str:
         """Its state in one line, for logs: landmarks, frames in the window, the last BA's RMS."""
@@ -97,7 +100,8 @@ class ClassicalFrontend:
         self.intr = intr
         self.obs[index] = self.tracks.step(to_grey_u8(rgb), self._predicted(index), self.cfg.guided_px,
                                              2 * self.cfg.min_inliers)
-        for k in sorted(self.obs)[: max(0, len(self.obs) - self.cfg.window)]:
+        unpinned = [k for k in sorted(self.obs) if k not in self.pinned]
+        for k in unpinned[: max(0, len(unpinned) - self.cfg.window)]:
             del self.obs[k]
             self.poses.pop(k, None)
             self.own.pop(k, None)

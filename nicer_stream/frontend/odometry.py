@@ -38,6 +38,7 @@ class FrontendOdometry:
 
     def _start(self, index: int) -> None:
         self.held.append(index)
+        self.frontend.pinned = {self.held[0]}
         if len(self.held) < 2:
             return
         view = self.frontend.two_view(self.held[0], index, self.median_m)
@@ -47,7 +48,7 @@ class FrontendOdometry:
                 self.held = self.held[len(self.held) // 2:]
             return
         first, held = self.held[0], self.held[1:-1]
-        self.held = []
+        self.held, self.frontend.pinned = [], set()
         for k, T in ((first, np.eye(4)), (index, view.T_world_second)):
             self.poses[k] = T
             self.frontend.set_pose(k, T)

@@ -177,6 +177,8 @@ class SlamSystem:
                 return []
             # The first frame is a keyframe from the start: priors flow from it to the next ones.
             self.keyframes.append(frame.index)
+            if self.frontend is not None:
+                self.frontend.pinned = {frame.index}
             return [KeyframeAdded(frame.index)]
         if self.pending:
             return self._start_two_view(mf, frame)
@@ -393,6 +395,8 @@ class SlamSystem:
         """Initialise from the held frames (+ `mf`, the second view, when given), then run the
         held frames through tracking and the schedule in input order."""
         held = list(zip(self.pending, self.pending_raw)) + ([(mf, frame)] if frame is not None else [])
+        if self.frontend is not None:
+            self.frontend.pinned = set()
         self.pending, self.pending_raw = [], []
         self._replay = {m.index for m, _ in held[1:] if m is not None}
         first = held[0][0]

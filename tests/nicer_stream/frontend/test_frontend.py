@@ -193,3 +193,14 @@ def test_holding_the_scale_keeps_every_projection_and_the_first_baseline():
         uv0, z0 = project(T, X, intr)
         uv1, z1 = project(U, Y, intr)
         np.testing.assert_allclose(uv1[z0 > 0], uv0[z0 > 0], atol=1e-9)
+
+
+def test_a_pinned_frame_outlives_the_window():
+    """The first view of a start still waiting for its second keeps its observations however
+    long the wait (the window drops every other old frame)."""
+    from dataclasses import replace
+    fe = ClassicalFrontend(replace(FrontendConfig(), window=4))
+    for f in open_source("synthetic:room?frames=120", SourceOptions(max_frames=9, max_side=160)):
+        fe.observe(f.index, f.rgb, f.intrinsics)
+        fe.pinned = {0}
+    assert sorted(fe.obs) == [0, 5, 6, 7, 8]
