@@ -5,7 +5,9 @@
   rerun+grpc[:URL]     stream to a running viewer (default URL if omitted)
   mcap:FILE.mcap       Foxglove-protobuf MCAP file
 
-`make_sink("rerun:out/run.rrd,mcap:out/run.mcap")` returns a MultiSink.
+Each takes `?images_every=N&image_side=PX` (sinks/options.py): input images of every N-th frame
+only, downsized to PX on the longer side. `make_sink("rerun:out/run.rrd,mcap:out/run.mcap")`
+returns a MultiSink.
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ from typing import Sequence
 
 from nicer_stream.errors import UserError
 from sinks.base import ForwardingSink, Sink
+from sinks.options import SinkOptions, split_spec
 
 SPECS = ("rerun:FILE.rrd", "rerun", "rerun+grpc:URL", "mcap:FILE.mcap")
 
@@ -27,6 +30,9 @@ class MultiSink(ForwardingSink):
     def _forward(self, name: str, *args, **kwargs) -> None:
         for s in self.sinks:
             getattr(s, name)(*args, **kwargs)
+
+    def wants_image(self, index: int) -> bool:
+        return any(s.wants_image(index) for s in self.sinks)
 
     def close(self) -> None:
         first: BaseException | None = None
@@ -48,19 +54,20 @@ def _file_target(scheme: str, path: str, suffix: str) -> Path:
 
 
 def _make_one(spec: str) -> Sink:
-    scheme, _, rest = spec.strip().partition(":")
+    base, opts = split_spec(spec.strip())
+    scheme, _, rest = base.partition(":")
     if scheme == "rerun":
         from sinks.rerun_sink import RerunSink
 
-        return RerunSink(spawn=True) if not rest else RerunSink(_file_target("rerun", rest, ".rrd"))
+        return RerunSink(spawn=True, options=opts) if not rest else RerunSink(_file_target("rerun", rest, ".rrd"), options=opts)
     if scheme == "rerun+grpc":
         from sinks.rerun_sink import RerunSink
 
-        return RerunSink(grpc_url=rest or None)
+        return RerunSink(grpc_url=rest or None, options=opts)
     if scheme == "mcap":
         from sinks.mcap_sink import McapSink
 
-        return McapSink(_file_target("mcap", rest, ".mcap"))
+        return McapSink(_file_target("mcap", rest, ".mcap"), options=opts)
     raise UserError(f"unknown sink '{spec}': use one of {', '.join(SPECS)} (comma-separated for several)")
 
 
@@ -80,4 +87,4 @@ def make_sink(spec: str | Sequence[str]) -> Sink:
     return sinks[0] if len(sinks) == 1 else MultiSink(sinks)
 
 
-__all__ = ["Sink", "MultiSink", "make_sink", "SPECS"]
+__all__ = ["Sink", "MultiSink", "SinkOptions", "make_sink", "SPECS"]

@@ -72,6 +72,11 @@ class Sink(ABC):
     def close(self) -> None:
         """Finalise outputs. Idempotent; must work after an exception."""
 
+    def wants_image(self, index: int) -> bool:
+        """Whether `log_frame(index, ...)` records the image (else the pose only): a caller can
+        then skip holding the image for it (the sink worker's queue)."""
+        return True
+
     def __enter__(self) -> "Sink":
         return self
 
@@ -162,6 +167,29 @@ def encode_jpeg(rgb: np.ndarray, quality: int = 90) -> bytes:
     if not ok:  # pragma: no cover - cv2 only fails on empty images
         raise ValueError(f"cannot JPEG-encode an image of shape {rgb.shape}")
     return buf.tobytes()
+
+
+def downsized(side: int | None, intrinsics: Intrinsics, rgb: np.ndarray, depth: np.ndarray | None = None,
+              normal: np.ndarray | None = None) -> tuple[Intrinsics, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """The images (H, W, ...) and their intrinsics with the longer side at most `side` pixels
+    (None, or already small enough: as given). RGB by area averaging; depth and normals by the
+    nearest pixel, so no depth mixes a foreground and a background."""
+    h, w = rgb.shape[:2]
+    if side is None or max(h, w) <= side:
+        return intrinsics, rgb, depth, normal
+    f = side / max(h, w)
+    size = (max(1, round(w * f)), max(1, round(h * f)))
+    near = (lambda a: None if a is None else cv2.resize(np.asarray(a), size, interpolation=cv2.INTER_NEAREST))
+    return (intrinsics.resized(*size), cv2.resize(np.asarray(rgb), size, interpolation=cv2.INTER_AREA),
+            near(depth), near(normal))
+
+
+def remember(times: dict[int, int], index: int, ns: int, limit: int = 4096) -> None:
+    """times[index] = ns, forgetting the oldest entry beyond `limit`: a sink looks up only recent
+    frames' times (metrics of the frame just tracked or mapped), and a long log must not grow it."""
+    times[int(index)] = ns
+    if len(times) > limit:
+        del times[next(iter(times))]  # dicts keep insertion order: the oldest frame
 
 
 def seconds_to_ns(timestamp: float, timestamp_ns: int | None = None) -> int:

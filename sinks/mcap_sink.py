@@ -2,6 +2,7 @@
 
 Topics (frame ids: `world`, `camera` = OpenCV optical frame):
   /camera/image        CompressedImage (jpeg)        /camera/calibration  CameraCalibration
+                       (these and depth/normal for every `images_every`-th frame, up to `image_side` px)
   /camera/depth        RawImage 32FC1 (z-depth, m)   /camera/normal       CompressedImage (png, (n+1)/2)
   /tf                  FrameTransform world->camera, i.e. the camera pose T_world_cam
   /camera/pose         PoseInFrame (world)           /camera/gt_pose      PoseInFrame (world), if GT given
@@ -39,8 +40,9 @@ from google.protobuf.wrappers_pb2 import DoubleValue
 from mcap_protobuf.writer import Writer
 
 from nicer_stream.types import Intrinsics
-from sinks.base import (Sink, colors_to_u8, encode_jpeg, normal_to_u8, pose_tq, rotations_to_quats,
-                        seconds_to_ns)
+from sinks.base import (Sink, colors_to_u8, downsized, encode_jpeg, normal_to_u8, pose_tq, remember,
+                        rotations_to_quats, seconds_to_ns)
+from sinks.options import SinkOptions
 
 WORLD, CAMERA, MAP_CAMERA = "world", "camera", "map_camera"
 
@@ -124,14 +126,16 @@ def beta_cloud(centres: np.ndarray, beta: np.ndarray, ns: int) -> PointCloud:
 
 
 class McapSink(Sink):
-    """Writes one MCAP file; each frame is flushed as its own chunk so a crash loses at most one frame."""
+    """Writes one MCAP file; each frame is flushed as its own chunk so a crash loses at most one
+    frame; `options` thin out the input images."""
 
-    def __init__(self, path: str | Path, jpeg_quality: int = 90) -> None:
+    def __init__(self, path: str | Path, jpeg_quality: int = 90, options: SinkOptions = SinkOptions()) -> None:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         self._file = open(path, "wb")
         self._writer = Writer(self._file)
         self.jpeg_quality = jpeg_quality
-        self._time_ns: dict[int, int] = {}
+        self.options = options
+        self._time_ns: dict[int, int] = {}  # recent frames only (`remember`)
         self._now_ns = 0
         self._closed = False
 
@@ -164,7 +168,8 @@ class McapSink(Sink):
         self._write("/tf", tf)
 
     def _write_pose(self, index, timestamp, T_world_cam, gt_T_world_cam, timestamp_ns) -> None:
-        ns = self._now_ns = self._time_ns[int(index)] = seconds_to_ns(timestamp, timestamp_ns)
+        ns = self._now_ns = seconds_to_ns(timestamp, timestamp_ns)
+        remember(self._time_ns, index, ns)
         self._write_tf(T_world_cam, CAMERA, ns)
         self._write("/camera/pose", self._pose_in_frame(T_world_cam, ns))
         if gt_T_world_cam is not None:
@@ -172,7 +177,11 @@ class McapSink(Sink):
 
     def log_frame(self, index, timestamp, rgb, intrinsics: Intrinsics, T_world_cam, depth=None,
                   normal=None, gt_T_world_cam=None, timestamp_ns=None) -> None:
+        if not self.wants_image(index):
+            self.log_pose(index, timestamp, T_world_cam, gt_T_world_cam, timestamp_ns)
+            return
         self._write_pose(index, timestamp, T_world_cam, gt_T_world_cam, timestamp_ns)
+        intrinsics, rgb, depth, normal = downsized(self.options.image_side, intrinsics, rgb, depth, normal)
         ns = self._now_ns
         self._write("/camera/image", compressed(encode_jpeg(rgb, self.jpeg_quality), "jpeg", ns))
         self._write("/camera/calibration", calibration(intrinsics, ns))
@@ -182,6 +191,9 @@ class McapSink(Sink):
             _, png = cv2.imencode(".png", cv2.cvtColor(normal_to_u8(normal), cv2.COLOR_RGB2BGR))
             self._write("/camera/normal", compressed(png.tobytes(), "png", ns))
         self._flush_chunk()
+
+    def wants_image(self, index: int) -> bool:
+        return self.options.keeps_image(index)
 
     def log_trajectory(self, positions, name="estimate", rotations=None) -> None:
         pos = np.asarray(positions, dtype=np.float64).reshape(-1, 3)

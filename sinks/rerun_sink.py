@@ -2,14 +2,17 @@
 
 Entities (world frame = the SLAM world, metres):
   world/camera               Transform3D, camera-to-world (T_world_cam)
-  world/camera/image         Pinhole (RDF = OpenCV axes) with rgb (JPEG), depth (m), normal ((n+1)/2)
+  world/camera/image         Pinhole (RDF = OpenCV axes) with rgb (JPEG), depth (m), normal ((n+1)/2),
+                             of every `images_every`-th frame at up to `image_side` px (SinkOptions)
   world/camera_gt            Transform3D of the ground-truth camera, when given
   world/map_camera/image/{rgb,depth,normal}  the map's render of the newest keyframe after each
                              map update (world/map_camera: its pose; image: its Pinhole)
   world/keyframes            Points3D of every keyframe's centre and Arrows3D of its optical axis
-  world/trajectory/estimate  LineStrips3D of the estimated trajectory
-  world/trajectory/gt/NNNNN  LineStrips3D of the ground truth, one piece per `gt_strip_every` frames
-                             (each starts where the previous ended: logging stays linear in frames)
+  world/trajectory/estimate  LineStrips3D of the final estimated trajectory (at the end of a run)
+  world/trajectory/tracked/NNNNN  LineStrips3D of the camera centres as their poses were logged
+                             (a run's poses as tracked), one piece per `strip_every` frames (each
+                             starts where the previous ended: logging stays linear in frames)
+  world/trajectory/gt/NNNNN  LineStrips3D of the ground truth, in pieces likewise
   world/mesh                 Mesh3D (logged rarely: every write is stored)
   world/beta                 Points3D at voxel centres, radius voxel/2, coloured by beta
   metrics/{name}             Scalars
@@ -29,9 +32,14 @@ import rerun.blueprint as rrb
 
 from nicer_stream.errors import UserError
 from nicer_stream.types import Intrinsics
-from sinks.base import Sink, beta_colors, colors_to_u8, normal_to_u8, pose_tq, rgb_to_u8, seconds_to_ns
+from sinks.base import (Sink, beta_colors, colors_to_u8, downsized, normal_to_u8, pose_tq, remember, rgb_to_u8,
+                        seconds_to_ns)
+from sinks.options import SinkOptions
+from sinks.strip_pieces import StripPieces
 
 APP_ID = "nicer-stream"
+# Line colours by trajectory name; other names (GT pieces) are blue.
+STRIP_COLOURS = {"estimate": [255, 140, 0], "tracked": [255, 215, 120]}
 
 
 def default_blueprint() -> rrb.Blueprint:
@@ -70,12 +78,13 @@ class RerunSink(Sink):
     """Writes to exactly one of: `path` (.rrd), a spawned viewer (`spawn=True`), `grpc_url`.
 
     `log_time=False` drops the wall-clock timeline (deterministic files for tests);
-    `flush_every` frames the stream is flushed so a crash loses little.
+    `flush_every` frames the stream is flushed so a crash loses little; `strip_every` frames
+    the tracked and GT trajectories get their next piece; `options` thin out the input images.
     """
 
     def __init__(self, path: str | Path | None = None, *, spawn: bool = False, grpc_url: str | None = None,
                  recording_id: str | None = None, log_time: bool = True, jpeg_quality: int = 85,
-                 flush_every: int = 10, gt_strip_every: int = 10) -> None:
+                 flush_every: int = 10, strip_every: int = 10, options: SinkOptions = SinkOptions()) -> None:
         if sum([path is not None, spawn, grpc_url is not None]) != 1:
             raise ValueError("RerunSink needs exactly one of path, spawn=True, grpc_url")
         self.rec = rr.RecordingStream(APP_ID, recording_id=recording_id or str(uuid.uuid4()))
@@ -96,11 +105,9 @@ class RerunSink(Sink):
             self.rec.connect_grpc(grpc_url or None, default_blueprint=bp)
         self.jpeg_quality = jpeg_quality
         self.flush_every = max(1, flush_every)
-        self.gt_strip_every = max(1, gt_strip_every)
-        self._time_ns: dict[int, int] = {}
-        self._gt_piece: list[np.ndarray] = []  # GT positions not logged yet, after the last logged one
-        self._gt_new = 0
-        self._gt_pieces = 0
+        self.options = options
+        self._time_ns: dict[int, int] = {}  # recent frames only (`remember`)
+        self._strips = {"tracked": StripPieces(strip_every), "gt": StripPieces(strip_every)}
         self._frames = 0
         self._closed = False
 
@@ -108,7 +115,7 @@ class RerunSink(Sink):
     def _set_time(self, index: int, timestamp: float | None = None, timestamp_ns: int | None = None) -> None:
         self.rec.set_time("frame", sequence=int(index))
         if timestamp is not None:
-            self._time_ns[int(index)] = seconds_to_ns(timestamp, timestamp_ns)
+            remember(self._time_ns, index, seconds_to_ns(timestamp, timestamp_ns))
         ns = self._time_ns.get(int(index))
         if ns is not None:
             self.rec.set_time("sensor_time", timestamp=np.datetime64(ns, "ns"))
@@ -123,14 +130,12 @@ class RerunSink(Sink):
         self._set_time(index, timestamp, timestamp_ns)
         t, q = pose_tq(T_world_cam)
         self.rec.log("world/camera", rr.Transform3D(translation=t, quaternion=rr.Quaternion(xyzw=q)))
+        self._grow("tracked", t)
         if gt_T_world_cam is not None:
             tg, qg = pose_tq(gt_T_world_cam)
             self.rec.log("world/camera_gt", rr.Transform3D(translation=tg, quaternion=rr.Quaternion(xyzw=qg)),
                          rr.TransformAxes3D(0.1))
-            self._gt_piece.append(tg)
-            self._gt_new += 1
-            if self._gt_new == self.gt_strip_every:
-                self._log_gt_strip()
+            self._grow("gt", tg)
         self._frames += 1
         if self._frames % self.flush_every == 0:
             self.rec.flush()
@@ -138,12 +143,16 @@ class RerunSink(Sink):
     def log_frame(self, index, timestamp, rgb, intrinsics: Intrinsics, T_world_cam, depth=None,
                   normal=None, gt_T_world_cam=None, timestamp_ns=None) -> None:
         self.log_pose(index, timestamp, T_world_cam, gt_T_world_cam, timestamp_ns)
-        self._log_images("world/camera/image", intrinsics, rgb, depth, normal)
+        if self.wants_image(index):
+            self._log_images("world/camera/image", *downsized(self.options.image_side, intrinsics, rgb, depth, normal))
+
+    def wants_image(self, index: int) -> bool:
+        return self.options.keeps_image(index)
 
     def log_trajectory(self, positions, name="estimate", rotations=None) -> None:
         self._check_open()
         pts = np.asarray(positions, dtype=np.float32).reshape(-1, 3)
-        colour = [255, 140, 0] if name == "estimate" else [0, 180, 255]
+        colour = STRIP_COLOURS.get(name.split("/")[0], [0, 180, 255])
         self.rec.log(f"world/trajectory/{name}", rr.LineStrips3D([pts], colors=[colour], radii=[0.005]))
 
     def log_mesh(self, vertices, faces, vertex_colors=None, normals=None) -> None:
@@ -191,18 +200,20 @@ class RerunSink(Sink):
         for name, value in values.items():
             self.rec.log(f"metrics/{name}", rr.Scalars(float(value)))
 
-    def _log_gt_strip(self) -> None:
-        """The GT positions since the last piece, as the next piece (joined to the previous one)."""
-        if self._gt_new:
-            self.log_trajectory(np.stack(self._gt_piece), name=f"gt/{self._gt_pieces:05d}")
-            self._gt_pieces += 1
-            self._gt_piece, self._gt_new = self._gt_piece[-1:], 0
+    def _grow(self, name: str, position: np.ndarray) -> None:
+        """Add a camera centre to trajectory `name`; log its next piece when one is full."""
+        self._log_piece(name, self._strips[name].add(position))
+
+    def _log_piece(self, name: str, piece: np.ndarray | None) -> None:
+        if piece is not None:
+            self.log_trajectory(piece, name=f"{name}/{self._strips[name].count - 1:05d}")
 
     def close(self) -> None:
         if self._closed:
             return
         try:
-            self._log_gt_strip()
+            for name, strip in self._strips.items():
+                self._log_piece(name, strip.take())
             self.rec.flush()
         finally:
             self._closed = True

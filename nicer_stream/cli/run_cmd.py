@@ -29,30 +29,38 @@ def run_command(
     max_renders: int = typer.Option(20, "--max-renders", help="At most N of those, spread evenly (a longer log doubles the stride; 0: no cap)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No per-frame lines or mapping progress: errors and the final summary only."),
     live_mesh_every: int = typer.Option(5, "--live-mesh-every", help="With --sink: a coarse mesh every N map updates while the run goes on (0: only the final mesh)."),
+    log_images_every: int = typer.Option(10, "--log-images-every", help="With --sink: the input image of every N-th frame only (every pose is logged); 1: all."),
+    log_image_side: int = typer.Option(320, "--log-image-side", help="With --sink: input images downsized to at most PX on the longer side (0: as read)."),
     sync: bool = typer.Option(False, "--sync", help="Everything in one thread, in order (deterministic under a seed)."),
     mapping_worker: str = typer.Option("auto", "--mapping-worker", help="on: mapping on its own thread while tracking goes on; off: inline; auto: on with a GPU or >= 4 cores (on 2 cores it measured 11% slower)."),
 ) -> None:
     """Track every frame and map keyframes; writes trajectory.tum, mesh.ply, summary.json (+ eval.json with GT)."""
     user_errors(_run)(source, out, preset, config, priors, flow, sink, max_frames, stride, start, drop, max_side, intrinsics,
-                      realtime, device, render_every, max_renders, live_mesh_every, quiet, sync, mapping_worker)
+                      realtime, device, render_every, max_renders, live_mesh_every, quiet, sync, mapping_worker,
+                      log_images_every, log_image_side)
 
 
-def _resolve_sinks(sinks: list[str], out: Path) -> tuple[str, ...]:
-    """A bare 'rerun' becomes a file in OUT when no viewer can be spawned (headless)."""
+def _resolve_sinks(sinks: list[str], out: Path, images_every: int = 1, image_side: int = 0) -> tuple[str, ...]:
+    """A bare 'rerun' becomes a file in OUT when no viewer can be spawned (headless); each spec
+    without a query of its own gets the image stride and size (sinks/options.py)."""
     import os
     import shutil
 
+    from sinks.options import SinkOptions
+
+    query = SinkOptions(images_every, image_side or None).query()
     res = []
     for s in sinks:
         if s == "rerun" and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) and not shutil.which("rerun-viewer"):
             s = f"rerun:{out / 'recording.rrd'}"
             typer.echo(f"no display for a Rerun viewer: recording to {s[6:]}", err=True)
-        res.append(s)
+        res.append(s if "?" in s else ",".join(p + query for p in s.split(",") if p.strip()))
     return tuple(res)
 
 
 def _run(source, out, preset, config, priors, flow, sinks, max_frames, stride, start, drop, max_side, intrinsics, realtime,
-         device, render_every, max_renders, live_mesh_every, quiet, sync, mapping_worker) -> None:
+         device, render_every, max_renders, live_mesh_every, quiet, sync, mapping_worker, log_images_every,
+         log_image_side) -> None:
     from nicer_stream.cli.run_report import evaluate_and_print
     from nicer_stream.runtime.slam_run import RunRequest, run_slam
     from sources.base import SourceOptions
@@ -63,7 +71,7 @@ def _run(source, out, preset, config, priors, flow, sinks, max_frames, stride, s
     opts = SourceOptions(start=start, stride=stride, drop=parse_drop(drop), max_frames=max_frames, max_side=max_side,
                          intrinsics=parse_intrinsics(intrinsics))
     res = run_slam(RunRequest(source=source, out_dir=out, priors=priors, flow=flow, preset=preset, config_file=config,
-                              sinks=_resolve_sinks(sinks, out), device=device, realtime=realtime,
+                              sinks=_resolve_sinks(sinks, out, log_images_every, log_image_side), device=device, realtime=realtime,
                               render_every=render_every, max_renders=max_renders, live_mesh_every=live_mesh_every, quiet=quiet, sync=sync, mapping_worker=mapping_worker,
                               source_opts=opts))
     if res.exit_code:  # stopped or failed: the partial outputs are written; no evaluation

@@ -1,6 +1,7 @@
 """What a sink receives at each map update, while the run goes on: the map's render of the
-frame just mapped, every keyframe's pose, the adaptive-beta voxels, the mapping loss terms,
-and every `mesh_every` updates a coarse mesh (the full one comes at the end).
+frame just mapped, every keyframe's pose, the mapping loss terms, every `beta_every` updates
+the adaptive-beta voxels and every `mesh_every` updates a coarse mesh (the full ones come at
+the end).
 
 The state is taken in the SLAM thread (poses, the published map) and the renders are made
 where `submit` runs them: on the sink worker in the asynchronous runtime."""
@@ -36,16 +37,20 @@ def coarse_mesh(slam: SlamSystem, poses: np.ndarray, intr: Intrinsics, model=Non
 
 
 class LiveMapOutputs:
-    """Logs a map update's state to `sink`; `mesh_every` 0 leaves meshes to the end of the run.
+    """Logs a map update's state to `sink`; `mesh_every` 0 leaves meshes to the end of the run,
+    `beta_every` 0 the beta voxels (from the first update on, every `beta_every`-th).
     `submit(fn)` runs the rendering and logging (default: at once); an update still queued when
     a newer one arrives is skipped there, so a slow sink skips map updates, never the SLAM."""
 
     def __init__(self, sink: Sink, slam: SlamSystem, mesh_every: int = 5,
-                 submit: Callable[[Callable[[], None]], None] | None = None) -> None:
-        self.sink, self.slam, self.mesh_every = sink, slam, mesh_every
+                 submit: Callable[[Callable[[], None]], None] | None = None, beta_every: int = 5) -> None:
+        # The voxels are most of a recording when logged at every update (the synthetic room at
+        # 60 frames: 27 of 29 MB, ~2 MB each time): like the mesh, they are logged every few.
+        self.sink, self.slam, self.mesh_every, self.beta_every = sink, slam, mesh_every, beta_every
         self.submit = submit or (lambda fn: fn())
         self.updates = 0
         self.skipped = 0  # updates a newer one overtook before the sink worker got to them
+        self._queued: list = []  # the newest update's state while it waits for the worker (or [])
 
     def __call__(self, event: MapUpdated, intr: Intrinsics, render: bool = True) -> None:
         """`render` False: no live render of this update (the run's final outputs render its map
@@ -60,28 +65,34 @@ class LiveMapOutputs:
         poses = np.stack(slam.trajectory()[1]) if self.mesh_every and self.updates % self.mesh_every == 0 else None
         measured = slam.measured_views(intr) if poses is not None else []
 
-        seq = self.updates
+        # An update still queued when a newer one comes is emptied here: its map snapshot (tens of
+        # MB) goes now rather than when the worker reaches it. list.pop is atomic across threads.
+        try:
+            self._queued.pop()
+        except IndexError:
+            pass
+        voxels = self.beta_every > 0 and (self.updates - 1) % self.beta_every == 0
+        job = self._queued = [(event, intr, model, beta, T, kf, poses, measured, render, voxels)]
 
         def emit() -> None:
-            if seq < self.updates:  # a newer update is queued behind this one: it shows the newer map
+            try:
+                state = job.pop()
+            except IndexError:  # a newer update is queued behind this one: it shows the newer map
                 self.skipped += 1
                 return
-            self._emit(event, intr, model, beta, T, kf, poses, measured, render)
+            self._emit(*state)
 
         self.submit(emit)
 
-    def _emit(self, event, intr, model, beta, T, kf, poses, measured, render=True) -> None:
+    def _emit(self, event, intr, model, beta, T, kf, poses, measured, render=True, voxels=True) -> None:
         if render:
             small = intr.scaled(RENDER_SCALE)
             view = render_image(model, beta, T, small, self.slam.cfg.render)
             self.sink.log_map_render(event.index, view.rgb, view.depth, view.normal, small, T.double().cpu().numpy())
         if kf:
             self.sink.log_keyframes(np.stack(kf))
-        centres, betas = beta.voxel_betas()
-        if len(centres):
-            world = model.bound.denormalise(centres.to(torch.float32)).cpu().numpy()
-            self.sink.log_beta_voxels(world, betas.cpu().numpy(),
-                                      2 * model.bound.half_extent / self.slam.cfg.render.beta_voxels)
+        if voxels:
+            self._log_voxels(model, beta)
         self.sink.log_scalars(event.index, {"mapping_loss": event.loss,
                                             **{f"mapping_{k}": v for k, v in event.terms.items()}})
         if poses is not None:
@@ -89,3 +100,10 @@ class LiveMapOutputs:
             if len(mesh.faces):
                 self.sink.log_mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces),
                                    np.asarray(mesh.visual.vertex_colors)[:, :3])
+
+    def _log_voxels(self, model, beta) -> None:
+        centres, betas = beta.voxel_betas()
+        if len(centres):
+            world = model.bound.denormalise(centres.to(torch.float32)).cpu().numpy()
+            self.sink.log_beta_voxels(world, betas.cpu().numpy(),
+                                      2 * model.bound.half_extent / self.slam.cfg.render.beta_voxels)

@@ -73,6 +73,20 @@ class SinkWorker(ForwardingSink):
     def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
         super().log_scalars(index, dict(values))  # the caller's dict may change before the worker gets to it
 
+    def wants_image(self, index: int) -> bool:
+        return self.sink.wants_image(index)
+
+    def log_frame(self, index, timestamp, rgb, intrinsics, T_world_cam, depth=None, normal=None,
+                  gt_T_world_cam=None, timestamp_ns=None) -> None:
+        """A frame whose image the sink would not record is queued as its pose alone: the queue
+        then holds no image for it (256 queued full images are hundreds of MB)."""
+        if self.sink.wants_image(index):
+            self._forward("log_frame", index, timestamp, rgb, intrinsics, T_world_cam, depth=depth, normal=normal,
+                          gt_T_world_cam=gt_T_world_cam, timestamp_ns=timestamp_ns)
+        else:
+            self._forward("log_pose", index, timestamp, T_world_cam, gt_T_world_cam=gt_T_world_cam,
+                          timestamp_ns=timestamp_ns)
+
     def close(self) -> None:
         if not self._closed:
             self._closed = True

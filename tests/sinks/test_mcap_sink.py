@@ -219,3 +219,22 @@ def test_rerun_imports_our_mcap_with_images_and_transforms(tmp_path):
     assert len(cols["/camera/calibration"]["Pinhole:image_from_camera"]) == 3
     tf = np.asarray([np.asarray(t).reshape(3) for t in cols["/tf"]["Transform3D:translation"]])
     np.testing.assert_allclose(tf, poses[:, :3, 3], atol=1e-5)
+
+
+def test_images_every_nth_frame_downsized_and_every_pose(tmp_path):
+    from sinks.options import SinkOptions
+
+    poses = random_poses(5, seed=5)
+    with make_sink(f"mcap:{tmp_path / 's.mcap'}?images_every=2&image_side=8") as sink:
+        for i, T in enumerate(poses):
+            sink.log_frame(i, 0.1 * i, smooth_rgb(i), INTR, T, depth=DEPTH)
+    assert sink.options == SinkOptions(2, 8)
+    msgs = read_mcap(tmp_path / "s.mcap")
+    assert len(msgs["/camera/pose"]) == 5
+    times = [t for t, _ in msgs["/camera/pose"]]
+    assert [t for t, _ in msgs["/camera/image"]] == [times[0], times[2], times[4]] == [t for t, _ in msgs["/camera/depth"]]
+    cal = msgs["/camera/calibration"][0][1]
+    assert (cal.width, cal.height) == (8, 6)
+    np.testing.assert_allclose(np.reshape(cal.K, (3, 3)), INTR.resized(8, 6).matrix())
+    img = cv2.imdecode(np.frombuffer(msgs["/camera/image"][1][1].data, np.uint8), cv2.IMREAD_COLOR)
+    assert img.shape == (6, 8, 3)

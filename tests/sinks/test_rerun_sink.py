@@ -12,6 +12,7 @@ from nicer_stream.errors import UserError
 from nicer_stream.geometry.se3 import quat_to_matrix, se3_exp
 from nicer_stream.types import Intrinsics
 from sinks import make_sink
+from sinks.options import SinkOptions
 from sinks.readback import read_rrd_columns as read_columns
 from sinks.rerun_sink import RerunSink
 
@@ -62,7 +63,7 @@ def test_entities_present(recording):
     cols, _ = recording
     for e in ["/world/camera", "/world/camera/image", "/world/camera/image/rgb", "/world/camera/image/depth",
               "/world/camera/image/normal", "/world/camera_gt", "/world/trajectory/estimate",
-              "/world/trajectory/gt/00000", "/world/mesh", "/world/beta", "/metrics/loss", "/metrics/psnr_db"]:
+              "/world/trajectory/gt/00000", "/world/trajectory/tracked/00000", "/world/mesh", "/world/beta", "/metrics/loss", "/metrics/psnr_db"]:
         assert e in cols, e
 
 
@@ -118,21 +119,48 @@ def test_scalars_and_trajectories(recording):
     np.testing.assert_allclose(gt, poses[:, :3, 3], atol=1e-5)  # gt strip written at close
 
 
-def test_gt_trajectory_is_logged_in_joined_pieces_linear_in_frames(tmp_path):
+@pytest.mark.parametrize("name", ["tracked", "gt"])
+def test_trajectories_are_logged_as_they_grow_in_joined_pieces_linear_in_frames(tmp_path, name):
     poses = random_poses(7, seed=3)
-    sink = RerunSink(tmp_path / "gt.rrd", log_time=False, gt_strip_every=3)
+    sink = RerunSink(tmp_path / "gt.rrd", log_time=False, strip_every=3)
     for i, T in enumerate(poses):
-        sink.log_pose(i, 0.1 * i, T, gt_T_world_cam=T)
+        sink.log_pose(i, 0.1 * i, T, gt_T_world_cam=T @ se3_exp(torch.full((6,), 0.1, dtype=torch.float64)).numpy())
     sink.close()
     cols = read_columns(tmp_path / "gt.rrd")
-    names = sorted(e for e in cols if e.startswith("/world/trajectory/gt/"))
+    names = sorted(e for e in cols if e.startswith(f"/world/trajectory/{name}/"))
     pieces = [np.asarray(cols[e]["LineStrips3D:strips"][-1][0]) for e in names]
     assert [len(p) for p in pieces] == [3, 4, 2]  # 3 new points each (+ the joint), the rest at close
     for a, b in zip(pieces, pieces[1:]):
         np.testing.assert_array_equal(a[-1], b[0])
     joined = np.concatenate([pieces[0]] + [p[1:] for p in pieces[1:]])
-    np.testing.assert_allclose(joined, poses[:, :3, 3], atol=1e-5)
-    assert cols[names[1]]["frame"] == [5]  # logged when its last frame came
+    logged = np.stack(cols["/world/camera" if name == "tracked" else "/world/camera_gt"]["Transform3D:translation"])[:, 0]
+    np.testing.assert_allclose(joined, logged, atol=1e-6)
+    # Each piece is logged when its last frame comes: the line grows along the frame timeline.
+    assert [cols[e]["frame"] for e in names] == [[2], [5], [6]]
+    assert "/world/trajectory/estimate" not in cols  # the final strip comes from log_trajectory only
+
+
+def test_input_images_every_nth_frame_downsized_with_their_intrinsics(tmp_path):
+    poses = random_poses(7, seed=4)
+    sink = RerunSink(tmp_path / "s.rrd", log_time=False, options=SinkOptions(images_every=3, image_side=8))
+    assert [sink.wants_image(i) for i in range(4)] == [True, False, False, True]
+    depth = np.arange(12 * 16, dtype=np.float32).reshape(12, 16)
+    for i, T in enumerate(poses):
+        sink.log_frame(i, 0.1 * i, smooth_rgb(i), INTR, T, depth=depth)
+    sink.close()
+    cols = read_columns(tmp_path / "s.rrd")
+    assert cols["/world/camera"]["frame"] == list(range(7))  # every pose
+    assert cols["/world/camera/image/rgb"]["frame"] == [0, 3, 6] == cols["/world/camera/image/depth"]["frame"]
+    pin = cols["/world/camera/image"]
+    assert pin["Pinhole:resolution"][0][0] == [8.0, 6.0]
+    K = np.asarray(pin["Pinhole:image_from_camera"][0][0]).reshape(3, 3).T
+    np.testing.assert_allclose(K, INTR.resized(8, 6).matrix(), atol=1e-6)
+    blob = bytes(cols["/world/camera/image/rgb"]["EncodedImage:blob"][1][0])
+    rgb = cv2.cvtColor(cv2.imdecode(np.frombuffer(blob, np.uint8), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+    small = cv2.resize(smooth_rgb(3), (8, 6), interpolation=cv2.INTER_AREA)
+    assert rgb.shape == (6, 8, 3) and np.abs(rgb / 255.0 - small).mean() < 0.03  # frame 3's image, JPEG error only
+    dep = np.frombuffer(bytes(cols["/world/camera/image/depth"]["DepthImage:buffer"][0][0]), np.float32)
+    assert set(dep) <= set(depth.ravel())  # nearest pixels: no depth averaged across an edge
 
 
 def test_close_twice_and_log_after_close(tmp_path):
@@ -162,7 +190,11 @@ def test_make_sink_specs(tmp_path, monkeypatch):
     assert isinstance(sink, RerunSink)
     sink.close()
     assert (tmp_path / "sub" / "x.rrd").is_file()
-    for bad in ["rerun:x.txt", "bogus:x.rrd", "mcap:", ""]:
+    sink = make_sink(f"rerun:{tmp_path / 'q.rrd'}?images_every=5&image_side=100")
+    assert sink.options == SinkOptions(images_every=5, image_side=100)
+    sink.close()
+    for bad in ["rerun:x.txt", "bogus:x.rrd", "mcap:", "", "rerun:y.rrd?every=2", "rerun:y.rrd?images_every=0",
+                "mcap:y.mcap?image_side=big"]:
         with pytest.raises(UserError) as e:
             make_sink(bad)
         assert "\n" not in str(e.value)
