@@ -1,19 +1,25 @@
 """Which frames become keyframes: by what the camera saw, not by frame count. A frame is a
-keyframe when the view has changed since the last keyframe (few of its tracks still seen, or a
-baseline / rotation that is a fair share of the scene), or when `max_gap_s` seconds have passed
-(a camera that never stops changing slowly); so the same scene at 30 Hz and at 10 Hz gives a
-similar set. Each decision carries its reason (`summary.json`)."""
+keyframe when the view has changed since the last keyframe (few of its landmarks still in view,
+or a baseline / rotation that is a fair share of the scene), or when `max_gap_s` seconds have
+passed (a camera that never stops changing slowly); so the same scene at 30 Hz and at 10 Hz
+gives a similar set. Each decision carries its reason (`summary.json`).
+
+In view means projected inside the image in front of the camera: which keypoints a real frame's
+detector finds again is too noisy a measure (half of them are not matched in the next frame)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
+from nicer_stream.frontend.triangulate import project
+from nicer_stream.types import Intrinsics
+
 
 @dataclass(frozen=True)
 class ViewChange:
-    """How far a frame's view is from the last keyframe's: the share of that keyframe's tracks
-    still seen, the baseline over the scene's median depth, the rotation in degrees, seconds."""
+    """How far a frame's view is from the last keyframe's: the share of that keyframe's landmarks
+    still in view, the baseline over the scene's median depth, the rotation in degrees, seconds."""
 
     overlap: float
     baseline: float
@@ -21,11 +27,17 @@ class ViewChange:
     gap_s: float
 
 
-def view_change(ids_kf: np.ndarray, T_kf: np.ndarray, t_kf: float, ids: np.ndarray, T: np.ndarray, t: float,
-                depth: float) -> ViewChange:
-    """The change from the keyframe (track ids (M,), T_world_cam (4, 4), timestamp) to a frame;
-    `depth`: the scene's median depth in the poses' unit."""
-    overlap = float(np.isin(ids_kf, ids).mean()) if len(ids_kf) else 0.0
+def in_view(points: np.ndarray, T: np.ndarray, intr: Intrinsics) -> np.ndarray:
+    """(N,) bool: world points (N, 3) in front of the camera at T_world_cam (4, 4) and inside its image."""
+    uv, z = project(T, points, intr)
+    return (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= intr.width - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= intr.height - 1)
+
+
+def view_change(points_kf: np.ndarray, T_kf: np.ndarray, t_kf: float, T: np.ndarray, t: float, depth: float,
+                intr: Intrinsics) -> ViewChange:
+    """The change from the keyframe (its landmarks (M, 3) world, T_world_cam (4, 4), timestamp) to
+    a frame at T (timestamp t); `depth`: the scene's median depth in the poses' unit."""
+    overlap = float(in_view(points_kf, T, intr).mean()) if len(points_kf) else 0.0
     d = np.linalg.inv(T_kf) @ T
     angle = float(np.degrees(np.arccos(np.clip((np.trace(d[:3, :3]) - 1) / 2, -1.0, 1.0))))
     baseline = float(np.linalg.norm(d[:3, 3])) / depth if depth > 0 else 0.0
@@ -47,7 +59,7 @@ class KeyframeRule:
         if c.gap_s < self.min_gap_s:
             return None
         if c.overlap < self.min_overlap:
-            return f"{100 * c.overlap:.0f}% of the last keyframe's tracks still seen"
+            return f"{100 * c.overlap:.0f}% of the last keyframe's landmarks still in view"
         if c.baseline > self.max_baseline:
             return f"baseline {c.baseline:.2f} of the scene depth"
         if c.rotation_deg > self.max_rotation_deg:
@@ -63,21 +75,23 @@ class KeyframeSelector:
 
     def __init__(self, rule: KeyframeRule) -> None:
         self.rule = rule
-        self.last: tuple[np.ndarray, np.ndarray, float] | None = None  # (track ids, T_world_cam, timestamp)
+        self.last: tuple[np.ndarray | None, np.ndarray, float] | None = None  # (landmarks, T_world_cam, timestamp)
         self.reasons: dict[int, str] = {}
 
-    def decide(self, ids: np.ndarray | None, T: np.ndarray, t: float, depth: float | None) -> str | None:
-        """Why this frame (its track ids, or None without tracks; T_world_cam; timestamp; scene
-        depth or None) should be a keyframe, or None. Without tracks or depth, only the time cap."""
+    def decide(self, T: np.ndarray, t: float, depth: float | None, intr: Intrinsics | None) -> str | None:
+        """Why a frame at T_world_cam `T`, timestamp `t` (the scene depth, or None; the intrinsics of
+        the image the landmarks are seen in) should be a keyframe, or None. Without landmarks or
+        depth, only the time cap."""
         if self.last is None:
             return "first frame"
-        ids_kf, T_kf, t_kf = self.last
-        if ids is None or not depth:
+        points, T_kf, t_kf = self.last
+        if points is None or not len(points) or not depth or intr is None:
             gap = t - t_kf
             return f"{gap:.1f} s since the last keyframe" if gap >= self.rule.max_gap_s else None
-        return self.rule.reason(view_change(ids_kf, T_kf, t_kf, ids, T, t, depth))
+        return self.rule.reason(view_change(points, T_kf, t_kf, T, t, depth, intr))
 
-    def taken(self, index: int, ids: np.ndarray | None, T: np.ndarray, t: float, reason: str) -> None:
-        """Frame `index` became a keyframe (for `reason`): later frames compare with it."""
-        self.last = (np.zeros(0, np.int64) if ids is None else ids, T, t)
+    def taken(self, index: int, points: np.ndarray | None, T: np.ndarray, t: float, reason: str) -> None:
+        """Frame `index` became a keyframe (for `reason`) with its landmarks `points` (M, 3) world
+        (None: none yet): later frames compare with it."""
+        self.last = (points, T, t)
         self.reasons[index] = reason

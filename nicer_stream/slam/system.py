@@ -277,27 +277,26 @@ class SlamSystem:
     def _decide_keyframe(self, index: int, T: torch.Tensor | np.ndarray, timestamp: float, depth: float | None) -> None:
         """View keyframes: whether frame `index` (its pose estimate T, the scene's median depth or
         None) has seen enough change since the last keyframe; the reason is kept."""
-        ids = self._view_tracks(index)
         depth = depth or self._scene_depth
         T = T.double().cpu().numpy() if isinstance(T, torch.Tensor) else T
-        self._kf_reason[index] = self.keyframe_view.decide(ids, T, timestamp, depth)
+        intr = self.frontend.intr if self.frontend is not None else None
+        self._kf_reason[index] = self.keyframe_view.decide(T, timestamp, depth, intr)
 
-    def _view_tracks(self, index: int) -> np.ndarray | None:
-        """Frame `index`'s tracks that have a landmark (all its tracks before there are landmarks):
-        what view keyframes compare. Most of a real frame's keypoints are never matched again, so
-        the share of all tracks still seen would fall at once."""
+    def _view_landmarks(self, index: int) -> np.ndarray | None:
+        """The world points (M, 3) of frame `index`'s landmarks, or None: what view keyframes
+        look for in later frames."""
         if self.frontend is None or index not in self.frontend.obs:
             return None
-        ids = self.frontend.obs[index][0]
-        has = np.fromiter((t in self.frontend.landmarks for t in ids.tolist()), bool, len(ids))
-        return ids[has] if has.sum() >= self.cfg.frontend.min_inliers else ids
+        X = self.frontend.landmark_observations(index)[1]
+        return X if len(X) else None
 
     def _keyframe_taken(self, index: int, timestamp: float) -> None:
         if self.keyframe_view is None:
             return
-        ids = self._view_tracks(index)
         reason = self._kf_reason.get(index) or "a failed keyframe's place"
-        self.keyframe_view.taken(index, ids, self.poses[index].double().cpu().numpy(), timestamp, reason)
+        log.info("frame %d: keyframe (%s)", index, reason)
+        self.keyframe_view.taken(index, self._view_landmarks(index), self.poses[index].double().cpu().numpy(),
+                                 timestamp, reason)
         for k in [k for k in self._kf_reason if k <= index]:
             del self._kf_reason[k]  # decided: bounded memory
 

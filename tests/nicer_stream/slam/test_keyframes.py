@@ -1,6 +1,6 @@
 """Keyframes by what the camera saw: none for a still camera but the time cap, few for slow
 motion, many for fast motion, some for a pure rotation; and the same path sampled at 30 Hz and
-at 10 Hz gives keyframes at nearly the same times."""
+at 10 Hz gives keyframes at nearly the same times. The landmarks are a random cloud of points."""
 import numpy as np
 
 from nicer_stream.frontend.triangulate import project
@@ -21,10 +21,10 @@ def pose(x: float, yaw_deg: float) -> np.ndarray:
 
 
 def seen(T: np.ndarray) -> tuple[np.ndarray, float]:
-    """Track ids (the visible points) and their median depth."""
+    """The landmarks a camera at T sees (M, 3) and their median depth."""
     uv, z = project(T, POINTS, INTR)
-    ok = (z > 0.5) & (uv[:, 0] >= 0) & (uv[:, 0] < 320) & (uv[:, 1] >= 0) & (uv[:, 1] < 240)
-    return np.flatnonzero(ok), float(np.median(z[ok]))
+    ok = (z > 0.5) & (uv[:, 0] >= 0) & (uv[:, 0] <= 319) & (uv[:, 1] >= 0) & (uv[:, 1] <= 239)
+    return POINTS[ok], float(np.median(z[ok]))
 
 
 def keyframes(speed_m_s: float, yaw_deg_s: float, hz: float, seconds: float = 6.0) -> list[float]:
@@ -34,10 +34,10 @@ def keyframes(speed_m_s: float, yaw_deg_s: float, hz: float, seconds: float = 6.
     for k in range(int(seconds * hz)):
         t = k / hz
         T = pose(speed_m_s * t, yaw_deg_s * t)
-        ids, depth = seen(T)
-        reason = sel.decide(ids, T, t, depth)
+        points, depth = seen(T)
+        reason = sel.decide(T, t, depth, INTR)
         if reason:
-            sel.taken(k, ids, T, t, reason)
+            sel.taken(k, points, T, t, reason)
             times.append(t)
     return times
 
@@ -54,13 +54,12 @@ def test_more_motion_gives_more_keyframes():
 
 def test_pure_rotation_takes_keyframes_by_rotation_or_overlap():
     sel = KeyframeSelector(KeyframeRule(max_gap_s=100.0))
-    ids0, d0 = seen(pose(0, 0))
-    sel.taken(0, ids0, pose(0, 0), 0.0, "first frame")
-    ids, d = seen(pose(0, 5))
-    assert sel.decide(ids, pose(0, 5), 0.1, d) is None
-    ids, d = seen(pose(0, 20))
-    reason = sel.decide(ids, pose(0, 20), 0.2, d)
-    assert reason is not None and ("rotated" in reason or "tracks still seen" in reason), reason
+    points, d = seen(pose(0, 0))
+    sel.taken(0, points, pose(0, 0), 0.0, "first frame")
+    assert sel.decide(pose(0, 5), 0.1, d, INTR) is None
+    reason = sel.decide(pose(0, 20), 0.2, d, INTR)
+    assert reason is not None and ("rotated" in reason or "still in view" in reason), reason
+    assert sel.decide(pose(0, 20), 0.2, None, INTR) is None  # without a depth: the time cap only
 
 
 def test_30_and_10_hz_give_similar_keyframes():
@@ -71,10 +70,12 @@ def test_30_and_10_hz_give_similar_keyframes():
 
 
 def test_view_change_measures():
-    ids, d = seen(pose(0, 0))
-    c = view_change(ids, pose(0, 0), 0.0, ids[: len(ids) // 2], pose(0.5, 0), 0.5, 5.0)
-    assert abs(c.overlap - len(ids[: len(ids) // 2]) / len(ids)) < 1e-12
+    points, d = seen(pose(0, 0))
+    c = view_change(points, pose(0, 0), 0.0, pose(0.5, 0), 0.5, 5.0, INTR)
+    expected = seen(pose(0.5, 0))[0]
+    assert abs(c.overlap - np.isin(points[:, 0], expected[:, 0]).mean()) < 0.02  # (z > 0.5 in `seen`)
     assert abs(c.baseline - 0.1) < 1e-12 and c.rotation_deg < 1e-6 and c.gap_s == 0.5
+    assert view_change(points, pose(0, 0), 0.0, pose(0, 0), 0.0, 5.0, INTR).overlap == 1.0
 
 
 def test_the_slam_maps_at_its_view_keyframes_and_says_why(tiny_config):
