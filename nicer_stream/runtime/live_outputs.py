@@ -1,7 +1,7 @@
 """What a sink receives at each map update, while the run goes on: the map's render of the
 frame just mapped, every keyframe's pose, the mapping loss terms, every `beta_every` updates
-the adaptive-beta voxels and every `mesh_every` updates a coarse mesh (the full ones come at
-the end).
+the sharpest adaptive-beta voxels (LIVE_VOXELS) and every `mesh_every` updates a coarse mesh
+(all voxels and the full mesh come at the end).
 
 The state is taken in the SLAM thread (poses, the published map) and the renders are made
 where `submit` runs them: on the sink worker in the asynchronous runtime."""
@@ -24,6 +24,9 @@ from sinks.base import Sink
 # a few seconds per map update on this CPU instead of the final outputs' tens.
 RENDER_SCALE = 0.5
 MESH_RESOLUTION = 64
+# Live beta voxels: the sharpest (most sampled: the surfaces) this many. All ~10^5 counted ones
+# were ~2 MB per log, most of a recording; the run's end logs them all.
+LIVE_VOXELS = 20_000
 
 
 def coarse_mesh(slam: SlamSystem, poses: np.ndarray, intr: Intrinsics, model=None, beta=None, measured=None):
@@ -44,8 +47,8 @@ class LiveMapOutputs:
 
     def __init__(self, sink: Sink, slam: SlamSystem, mesh_every: int = 5,
                  submit: Callable[[Callable[[], None]], None] | None = None, beta_every: int = 5) -> None:
-        # The voxels are most of a recording when logged at every update (the synthetic room at
-        # 60 frames: 27 of 29 MB, ~2 MB each time): like the mesh, they are logged every few.
+        # The voxels were most of a recording when all were logged at every update (the synthetic
+        # room at 60 frames: 27 of 29 MB, ~2 MB each time): like the mesh, they come every few.
         self.sink, self.slam, self.mesh_every, self.beta_every = sink, slam, mesh_every, beta_every
         self.submit = submit or (lambda fn: fn())
         self.updates = 0
@@ -103,6 +106,9 @@ class LiveMapOutputs:
 
     def _log_voxels(self, model, beta) -> None:
         centres, betas = beta.voxel_betas()
+        if len(betas) > LIVE_VOXELS:
+            keep = torch.topk(betas, LIVE_VOXELS, largest=False).indices
+            centres, betas = centres[keep], betas[keep]
         if len(centres):
             world = model.bound.denormalise(centres.to(torch.float32)).cpu().numpy()
             self.sink.log_beta_voxels(world, betas.cpu().numpy(),
