@@ -137,6 +137,13 @@ class LossConfig:
     """Scale rule of the first SLAM mapping: the first frame's depth-prior median is taken
     as this many metres, its shift comes from the normal prior (`mapping/depth_shift.py`;
     the paper fixes w=20, q=0 for Omnidata's output range)."""
+    affine_brightness: bool = False
+    """Each mapped frame's affine brightness (gain exp(a), bias b; `losses/brightness.py`) is
+    optimised with the map (`mapping/exposure.py`) and corrects the RGB and warping terms: a
+    real camera's auto-exposure. The first frame mapped holds the gauge at (0, 0). Not in the paper."""
+    huber_delta: float = 0.0
+    """RGB and warping residuals: Huber-smoothed L1 with this threshold per channel
+    (`losses/robust.py`), for blur and rolling shutter; 0: the paper's L1."""
 
 
 @dataclass(frozen=True)
@@ -279,7 +286,21 @@ class TrackingConfig:
     """'gauss_newton': 'rgb' (three residuals per pixel, three backward passes) or 'grey'
     (the channels' mean: one backward pass)."""
     huber_delta: float = 0.05
-    """'gauss_newton': colour residuals beyond this get Huber's down-weighting."""
+    """Colour residuals beyond this get Huber's down-weighting ('gauss_newton' always; 'adam'
+    with `huber`)."""
+    huber: bool = False
+    """'adam': Huber's loss (threshold `huber_delta`, L1's slope beyond it) instead of the
+    paper's L1: for blur and rolling shutter, and smoother near the optimum."""
+    affine_brightness: bool = False
+    """Fit the frame's affine brightness (gain, bias) to the map's render at every iteration, in
+    closed form (`losses/brightness.py`), and compare the corrected render: a real camera's
+    exposure changes between frames. Not in the paper."""
+    brightness_prior: float = 1e-4
+    """`affine_brightness`: ridge pull of the fit toward gain 1, bias 0, per unit of pixel weight
+    (weak: a bound for pixels that barely constrain it, not a bias)."""
+    max_gain: float = 4.0
+    """`affine_brightness`: the fitted gain stays within [1 / max_gain, max_gain] of the map's: a
+    render unlike the image would fit a gain near 0 and silence the pose's gradient."""
     damping: float = 1e-3
     """'gauss_newton': Levenberg-Marquardt damping on the normal equations' diagonal."""
     max_step_m: float = 0.05

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import torch
 
+from nicer_stream.losses.robust import robust_l1
+
 
 def masked_mean(values: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
     """Mean of (..., N) `values` over (..., N) bool `mask` (all rays if None), along the last
@@ -23,10 +25,12 @@ def masked_mean(values: torch.Tensor, mask: torch.Tensor | None = None) -> torch
     return kept.sum(-1) / mask.sum(-1).clamp_min(1).to(values.dtype)
 
 
-def rgb_l1(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor | None = None) -> torch.Tensor:
-    """Mean over rays of |pred - target|_1.
+def rgb_l1(pred: torch.Tensor, target: torch.Tensor, mask: torch.Tensor | None = None,
+           huber_delta: float = 0.0) -> torch.Tensor:
+    """Mean over rays of |pred - target|_1 (with `huber_delta` > 0: of the Huber-smoothed
+    norm `robust.robust_l1`).
 
     pred, target: (N, 3) float RGB in [0, 1]. mask: (N,) bool or None (all rays).
     Returns a 0-dim tensor.
     """
-    return masked_mean((pred - target).abs().sum(dim=-1), mask)
+    return masked_mean(robust_l1(pred - target, huber_delta), mask)

@@ -12,7 +12,9 @@ import torch
 
 from nicer_stream.geometry.camera import in_image, project, unproject
 from nicer_stream.geometry.se3 import invert, transform_points
+from nicer_stream.losses.brightness import brightness_into
 from nicer_stream.losses.photometric import masked_mean
+from nicer_stream.losses.robust import robust_l1
 from nicer_stream.types import Intrinsics
 
 
@@ -81,13 +83,20 @@ def warping_loss(
     images_dst: Sequence[torch.Tensor],
     uv_dst: Sequence[torch.Tensor],
     valid: Sequence[torch.Tensor],
+    huber_delta: float = 0.0,
+    brightness_src: torch.Tensor | None = None,
+    brightness_dst: Sequence[torch.Tensor] | None = None,
 ) -> torch.Tensor:
-    """Mean over valid (ray, destination frame) pairs of |C_src - C_dst(uv_dst)|_1.
+    """Mean over valid (ray, destination frame) pairs of |C_src - C_dst(uv_dst)|_1 (with
+    `huber_delta` > 0: the Huber-smoothed norm `robust.robust_l1`).
 
     rgb_src: (N, 3) observed colours at the source pixels.
     images_dst: per destination frame, (H, W, 3) observed image.
     uv_dst, valid: per destination frame, (N, 2) warped pixels and (N,) bool
         from `warp_pixels`.
+    brightness_src (2,), brightness_dst: per destination frame (2,): the frames' affine
+        brightness (a, b) (`losses/brightness.py`); when given, each destination colour is
+        brought into the source's exposure before the comparison (differentiable in both).
     Returns a 0-dim tensor, 0 when no pair is valid. The gradient reaches the
     depth and poses through uv_dst (image gradients of the destination frame).
     """
@@ -95,8 +104,8 @@ def warping_loss(
         raise ValueError("images_dst, uv_dst and valid must have one entry per destination frame")
     if not images_dst:
         return rgb_src.sum() * 0.0
-    errors = [
-        (bilinear_sample(img, uv).to(rgb_src.dtype) - rgb_src).abs().sum(dim=-1)
-        for img, uv in zip(images_dst, uv_dst)
-    ]
+    seen = [bilinear_sample(img, uv).to(rgb_src.dtype) for img, uv in zip(images_dst, uv_dst)]
+    if brightness_src is not None and brightness_dst is not None:
+        seen = [brightness_into(c, ab, brightness_src) for c, ab in zip(seen, brightness_dst)]
+    errors = [robust_l1(c - rgb_src, huber_delta) for c in seen]
     return masked_mean(torch.cat(errors), torch.cat([m.to(torch.bool) for m in valid]))

@@ -24,6 +24,10 @@ class LossWeights:
     """|1 - cos| between rendered and monocular normals (`normal_loss`, second output)."""
     eikonal: float = 0.1
     """Eikonal regulariser on SDF gradients (`eikonal_loss`)."""
+    brightness: float = 0.01
+    """Pull of the window frames' affine brightness toward (0, 0): mean of a^2 + b^2 (not in
+    the paper; only with `loss.affine_brightness`). Weak: the RGB terms decide, it only keeps
+    a frame the map barely constrains near the reference exposure."""
 
 
 @dataclass
@@ -40,6 +44,7 @@ class LossTerms:
     normal_l1: torch.Tensor | None = None
     normal_angular: torch.Tensor | None = None
     eikonal: torch.Tensor | None = None
+    brightness: torch.Tensor | None = None
 
 
 def total_loss(terms: LossTerms, weights: LossWeights = LossWeights()) -> torch.Tensor:

@@ -19,10 +19,12 @@ from nicer_stream.config import LossConfig
 from nicer_stream.geometry.camera import in_image, project, unproject
 from nicer_stream.geometry.se3 import invert
 from nicer_stream.losses import LossTerms, eikonal_loss, masked_mean
+from nicer_stream.losses.brightness import apply_brightness, brightness_into
 from nicer_stream.losses.mono_depth import degenerate_fit, masked_moments
+from nicer_stream.losses.robust import robust_l1
 from nicer_stream.losses.warping import bilinear_sample_rows
 from nicer_stream.mapping.map_frame import MapFrame
-from nicer_stream.mapping.objective import warp_partners
+from nicer_stream.mapping.objective import brightness_prior, warp_partners
 from nicer_stream.mapping.ray_sampling import FrameRays
 from nicer_stream.render.renderer import RenderOutput
 
@@ -94,7 +96,8 @@ def _depth_rows(d: torch.Tensor, prior: torch.Tensor, fixed: list[tuple[float, f
 
 def mapping_terms_batched(out: RenderOutput, layout: list[FrameRays], stack: FrameStack, cfg: LossConfig,
                           fixed_scale_shift: tuple[float, float] | None = None,
-                          extra_sdf_grad: torch.Tensor | None = None, rng: random.Random | None = None) -> LossTerms:
+                          extra_sdf_grad: torch.Tensor | None = None, rng: random.Random | None = None,
+                          brightness: torch.Tensor | None = None) -> LossTerms:
     """`objective.mapping_terms` for a layout that `stack.fits`: the same terms (to float
     rounding) and the same random partners drawn from `rng`."""
     nfr, per = len(layout), layout[0].stop - layout[0].start
@@ -104,7 +107,10 @@ def mapping_terms_batched(out: RenderOutput, layout: list[FrameRays], stack: Fra
     pix = torch.cat([fr.pix for fr in layout]).view(nfr, per)
     grow = k_of[:, None] * hw + pix  # (F, per) rows of the stack
     target = stack.rgb[grow.reshape(-1)]
-    rgb = (out.rgb - target).abs().sum(-1).view(nfr, per).mean(-1).mean()
+    pred = out.rgb.view(nfr, per, 3)
+    if brightness is not None:
+        pred = apply_brightness(pred, brightness[:, None])
+    rgb = robust_l1(pred - target.view(nfr, per, 3), cfg.huber_delta).mean(-1).mean()
     d = out.depth.view(nfr, per)
     intr = layout[0].frame.intr
 
@@ -155,11 +161,13 @@ def mapping_terms_batched(out: RenderOutput, layout: list[FrameRays], stack: Fra
             if cfg.weights.warp > 0:
                 first = (k_of[di] * hw)[:, None].expand(len(pairs), per).reshape(-1)
                 seen = bilinear_sample_rows(stack.rgb, h, w, uv_dst.reshape(-1, 2), first).view(len(pairs), per, 3)
-                err = torch.where(valid, (seen - target.view(nfr, per, 3)[si]).abs().sum(-1), 0.0)
+                if brightness is not None:  # the partner's colours in the source's exposure
+                    seen = brightness_into(seen, brightness[di, None], brightness[si, None])
+                err = torch.where(valid, robust_l1(seen - target.view(nfr, per, 3)[si], cfg.huber_delta), 0.0)
                 num = d.new_zeros(nfr).index_add(0, si, err.sum(-1))
                 cnt = d.new_zeros(nfr).index_add(0, si, valid.sum(-1).to(d.dtype))
                 src = torch.unique(si)  # frames with partners, in layout order
                 warp = (num[src] / cnt[src].clamp_min(1)).mean()
     grads = out.sdf_grad if extra_sdf_grad is None else torch.cat([out.sdf_grad, extra_sdf_grad])
     return LossTerms(rgb=rgb, warp=warp, flow=flow, depth=depth, normal_l1=n_l1, normal_angular=n_ang,
-                     eikonal=eikonal_loss(grads))
+                     eikonal=eikonal_loss(grads), brightness=brightness_prior(brightness))

@@ -17,6 +17,7 @@ from nicer_stream.denormals import flush_denormals
 from nicer_stream.geometry.se3 import se3_exp
 from nicer_stream.losses import LossTerms, total_loss
 from nicer_stream.mapping.batched_objective import FrameStack, mapping_terms_batched
+from nicer_stream.mapping.exposure import FrameExposures
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.objective import mapping_terms
 from nicer_stream.mapping.ray_sampling import batch_rays
@@ -53,6 +54,8 @@ class Mapper:
             t.grad = torch.zeros_like(t)
         self.gen = torch.Generator().manual_seed(seed)
         self.rng = random.Random(seed)
+        self.exposures = FrameExposures(cfg.mapping.lr_brightness, model.geometry.coarse_grid.table.device) \
+            if cfg.loss.affine_brightness else None
 
     def _frozen(self, frac: float, color_start: float) -> set[str]:
         frozen = set()
@@ -127,10 +130,11 @@ class Mapper:
             rays, layout = batch_rays(frames, T, m.rays, self.gen)
             out = render_rays(self.model, self.beta, rays, self.cfg.render, use_fine=use_fine)
             extra = self._eikonal_points(m.eikonal_points, use_fine)
+            ab = None if self.exposures is None else self.exposures.rows([f.index for f in frames])
             if stack is not None and stack.fits(layout):
-                terms = mapping_terms_batched(out, layout, stack, self.cfg.loss, fixed_scale_shift, extra, self.rng)
+                terms = mapping_terms_batched(out, layout, stack, self.cfg.loss, fixed_scale_shift, extra, self.rng, ab)
             else:
-                terms = mapping_terms(out, layout, self.cfg.loss, fixed_scale_shift, extra, self.rng)
+                terms = mapping_terms(out, layout, self.cfg.loss, fixed_scale_shift, extra, self.rng, ab)
             loss = total_loss(terms, self.cfg.loss.weights)
             self.opt.zero_grad(set_to_none=False)
             if pose_opt is not None:
@@ -140,6 +144,8 @@ class Mapper:
             self.model.parameters_changed()
             if ba:
                 pose_opt.step()
+            if self.exposures is not None:
+                self.exposures.step()
             self.beta.count(out.points.detach())
             if progress is not None:
                 progress(it, iters, float(loss.detach()))

@@ -9,6 +9,7 @@ from nicer_stream.config import LossConfig
 from nicer_stream.losses import (
     LossTerms, bilinear_sample, eikonal_loss, flow_loss, mono_depth_loss, normal_loss, rgb_l1, warp_pixels, warping_loss,
 )
+from nicer_stream.losses.brightness import apply_brightness
 from nicer_stream.mapping.ray_sampling import FrameRays
 from nicer_stream.render.renderer import RenderOutput
 
@@ -26,17 +27,27 @@ def warp_partners(fr: FrameRays, layout: list[FrameRays], k: int, rng: random.Ra
     return others[:k]
 
 
+def brightness_prior(brightness: torch.Tensor | None) -> torch.Tensor | None:
+    """The pull of (F, 2) frames' affine brightness toward (0, 0): mean of a^2 + b^2 (None: off)."""
+    return None if brightness is None else (brightness * brightness).sum(-1).mean()
+
+
 def mapping_terms(out: RenderOutput, layout: list[FrameRays], cfg: LossConfig,
                   fixed_scale_shift: tuple[float, float] | None = None,
-                  extra_sdf_grad: torch.Tensor | None = None, rng: random.Random | None = None) -> LossTerms:
+                  extra_sdf_grad: torch.Tensor | None = None, rng: random.Random | None = None,
+                  brightness: torch.Tensor | None = None) -> LossTerms:
     """Unweighted loss terms. Per-frame terms (depth alignment, warping, flow) are
-    computed frame by frame and averaged."""
+    computed frame by frame and averaged. `brightness`: (F, 2) affine brightness (a, b) of the
+    layout's frames in its order (`mapping/exposure.py`), applied to the RGB and warping terms
+    (None: the paper's, none)."""
     rgb, warp, flow, depth, n_l1, n_ang = [], [], [], [], [], []
-    for fr in layout:
+    pos = {fr.frame.index: i for i, fr in enumerate(layout)}
+    for i, fr in enumerate(layout):
         sl = slice(fr.start, fr.stop)
         f = fr.frame
         target = f.rgb.reshape(-1, 3)[fr.pix]
-        rgb.append(rgb_l1(out.rgb[sl], target))
+        pred = out.rgb[sl] if brightness is None else apply_brightness(out.rgb[sl], brightness[i])
+        rgb.append(rgb_l1(pred, target, None, cfg.huber_delta))
         d = out.depth[sl]
         if f.depth_prior is not None:
             prior = f.depth_prior.reshape(-1)[fr.pix]
@@ -61,9 +72,12 @@ def mapping_terms(out: RenderOutput, layout: list[FrameRays], cfg: LossConfig,
                     fl, fv = f.flows[p.frame.index]
                     flow.append(flow_loss(fr.uv, uv_dst, fl.reshape(-1, 2)[fr.pix], valid & fv.reshape(-1)[fr.pix]))
             if cfg.weights.warp > 0:
-                warp.append(warping_loss(target, imgs, uvs, valids))
+                ab_dst = None if brightness is None else [brightness[pos[p.frame.index]] for p in partners]
+                warp.append(warping_loss(target, imgs, uvs, valids, cfg.huber_delta,
+                                         None if brightness is None else brightness[i], ab_dst))
     grads = out.sdf_grad if extra_sdf_grad is None else torch.cat([out.sdf_grad, extra_sdf_grad])
     return LossTerms(
         rgb=_mean(rgb), warp=_mean(warp), flow=_mean(flow), depth=_mean(depth),
         normal_l1=_mean(n_l1), normal_angular=_mean(n_ang), eikonal=eikonal_loss(grads),
+        brightness=brightness_prior(brightness),
     )

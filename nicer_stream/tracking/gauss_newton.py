@@ -22,11 +22,6 @@ def ray_twist_jacobian(g_o: torch.Tensor, g_d: torch.Tensor, dirs: torch.Tensor,
     return torch.cat([j_rho, j_phi], dim=-1)
 
 
-def robust_weights(residual: torch.Tensor, delta: float) -> torch.Tensor:
-    """Huber IRLS weights: 1 inside |r| <= delta, delta / |r| outside (L1-like for large r)."""
-    return (delta / residual.abs().clamp_min(1e-12)).clamp(max=1.0)
-
-
 def damped_step(J: torch.Tensor, r: torch.Tensor, w: torch.Tensor, damping: float) -> torch.Tensor:
     """Levenberg-Marquardt step minimising sum w (r + J xi)^2 + damping * xi^T diag(H) xi.
 

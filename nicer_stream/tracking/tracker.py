@@ -3,7 +3,11 @@ with the RGB loss on pixels redrawn every iteration; keep the best (or last) pos
 
 Two optimisers: 'adam' on the L1 loss (the paper), and 'gauss_newton' (Levenberg-Marquardt
 with Huber weights, `tracking/gauss_newton.py`), which takes a handful of iterations and
-stops when the step is below `stop_m` / `stop_rad`."""
+stops when the step is below `stop_m` / `stop_rad`.
+
+With `affine_brightness` the frame's gain and bias are fitted in closed form to each
+iteration's render before the residual is taken (`losses/brightness.py`): for a fixed render
+the best affine map is exact, so the pose's gradient is that of the loss minimised over it."""
 from __future__ import annotations
 
 import math
@@ -17,9 +21,11 @@ from nicer_stream.denormals import flush_denormals
 from nicer_stream.errors import UserError
 from nicer_stream.geometry.se3 import invert, se3_exp, se3_log
 from nicer_stream.losses import rgb_l1
+from nicer_stream.losses.brightness import apply_brightness, fit_brightness
+from nicer_stream.losses.robust import huber_weights
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.ray_sampling import sample_pixels
-from nicer_stream.tracking.gauss_newton import damped_step, ray_twist_jacobian, robust_weights
+from nicer_stream.tracking.gauss_newton import damped_step, ray_twist_jacobian
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.render.renderer import RayBatch, render_rays, rays_for_pixels
@@ -29,13 +35,14 @@ from nicer_stream.render.renderer import RayBatch, render_rays, rays_for_pixels
 class TrackingResult:
     """T_world_cam (4, 4) chosen by `TrackingConfig.keep` (the lowest-loss iteration's, or
     the final iterate), the lowest loss seen (the failure checks compare it), the first loss,
-    iterations, seconds."""
+    iterations, seconds; with `affine_brightness`, the frame's (a, b) fitted at the last iteration."""
 
     T_world_cam: torch.Tensor
     loss: float
     initial_loss: float
     iters: int
     seconds: float
+    brightness: tuple[float, float] | None = None
 
 
 def decayed_lr(lr: float, decay: float, step: int, steps: int) -> float:
@@ -71,6 +78,15 @@ class Tracker:
         ok = self.beta.counts[self.beta.voxel_index(x)] > self.cfg.min_count
         return ok if ok.any() else None
 
+    def _brightness(self, rendered: torch.Tensor, observed: torch.Tensor, mask: torch.Tensor | None) -> torch.Tensor | None:
+        """(2,) (a, b) mapping this iteration's (N, 3) render onto the frame's colours on the
+        pixels that count (None without `affine_brightness`)."""
+        if not self.cfg.affine_brightness:
+            return None
+        huber = self.cfg.huber_delta if (self.cfg.huber or self.cfg.optimizer == "gauss_newton") else 0.0
+        return fit_brightness(rendered, observed, None if mask is None else mask.to(rendered.dtype),
+                              self.cfg.brightness_prior, huber, max_gain=self.cfg.max_gain)
+
     @flush_denormals()
     def track(self, frame: MapFrame, T_init: torch.Tensor) -> TrackingResult:
         with self.model.frozen():
@@ -93,8 +109,10 @@ class Tracker:
             rays = RayBatch(o, d, base.z_per_dist)
             out = render_rays(self.model, self.beta, rays, self.render)
             mask = self._observed(rays, out)
-            res = out.rgb - target[pix]
-            losses.append(float(rgb_l1(out.rgb.detach(), target[pix], mask)))
+            ab = self._brightness(out.rgb, target[pix], mask)
+            pred = out.rgb if ab is None else apply_brightness(out.rgb, ab)
+            res = pred - target[pix]
+            losses.append(float(rgb_l1(pred.detach(), target[pix], mask, cfg.huber_delta if cfg.huber else 0.0)))
             if it == cfg.iters or not math.isfinite(losses[-1]):
                 break
             # One residual per channel (three backward passes), or the grey level's (one).
@@ -103,9 +121,11 @@ class Tracker:
             g = [torch.autograd.grad(values[:, c].sum(), [o, d], retain_graph=c < len(r) - 1) for c in range(len(r))]
             g_o, g_d = torch.stack([a for a, _ in g]), torch.stack([b for _, b in g])  # (C, N, 3)
             J = ray_twist_jacobian(g_o, g_d, d.detach(), T[:3, :3])  # (C, N, 6)
+            if ab is not None:  # the residual sees the render through the gain
+                J = J * torch.exp(ab[0])
             keep = mask if mask is not None else torch.ones_like(r[0], dtype=torch.bool)
             J, r = J[:, keep].reshape(-1, 6), r[:, keep].reshape(-1)
-            step = damped_step(J, r, robust_weights(r, cfg.huber_delta), cfg.damping)
+            step = damped_step(J, r, huber_weights(r, cfg.huber_delta), cfg.damping)
             if not torch.isfinite(step).all():
                 break
             # A step larger than the bound is shortened: a linearisation holds only nearby.
@@ -124,7 +144,8 @@ class Tracker:
             last = iterates[-cfg.average:]
             xi = torch.stack([se3_log(invert(T) @ Ti) for Ti in last]).mean(0)
             T = T @ se3_exp(xi)
-        return TrackingResult(T, min(ok) if ok else math.nan, losses[0], it, time.perf_counter() - t0)
+        return TrackingResult(T, min(ok) if ok else math.nan, losses[0], it, time.perf_counter() - t0,
+                              None if ab is None else (float(ab[0]), float(ab[1])))
 
     def _track_adam(self, frame: MapFrame, T_init: torch.Tensor) -> TrackingResult:
         t0 = time.perf_counter()
@@ -137,7 +158,10 @@ class Tracker:
             uv, pix = sample_pixels(frame, self.cfg.rays, self.gen)
             rays = rays_for_pixels(uv, frame.intr, T)
             out = render_rays(self.model, self.beta, rays, self.render)
-            loss = rgb_l1(out.rgb, frame.rgb.reshape(-1, 3)[pix], self._observed(rays, out))
+            target, mask = frame.rgb.reshape(-1, 3)[pix], self._observed(rays, out)
+            ab = self._brightness(out.rgb, target, mask)
+            pred = out.rgb if ab is None else apply_brightness(out.rgb, ab)
+            loss = rgb_l1(pred, target, mask, self.cfg.huber_delta if self.cfg.huber else 0.0)
             val = float(loss.detach())
             first = val if first is None else first
             if val < best_loss and math.isfinite(val):
@@ -157,4 +181,4 @@ class Tracker:
         with torch.no_grad():
             T_best = T_init @ se3_exp(best_xi)
         return TrackingResult(T_best, best_loss, first if first is not None else math.nan, self.cfg.iters,
-                              time.perf_counter() - t0)
+                              time.perf_counter() - t0, None if ab is None else (float(ab[0]), float(ab[1])))

@@ -25,3 +25,12 @@ def test_empty_mask_gives_zero_not_nan():
     assert loss.item() == 0.0
     loss.backward()  # still attached to the graph
     assert masked_mean(torch.zeros(0)).item() == 0.0
+
+
+def test_rgb_loss_with_huber_is_quadratic_near_zero_and_l1_less_half_delta_beyond():
+    pred = torch.zeros(2, 3)
+    target = torch.tensor([[0.01, 0.0, -0.02], [0.5, -0.6, 0.7]])
+    d = 0.05
+    per_ray = [(0.01**2 + 0.02**2) / (2 * d), 1.8 - 3 * d / 2]
+    assert torch.isclose(rgb_l1(pred, target, huber_delta=d), torch.tensor(sum(per_ray) / 2))
+    assert torch.isclose(rgb_l1(pred, target, huber_delta=0.0), rgb_l1(pred, target))

@@ -1,3 +1,4 @@
+import math
 from pathlib import Path
 
 import numpy as np
@@ -7,6 +8,7 @@ import torch.nn.functional as F
 
 from nicer_stream.geometry.camera import pixel_grid
 from nicer_stream.geometry.se3 import se3_exp
+from nicer_stream.losses.brightness import apply_brightness
 from nicer_stream.losses.warping import bilinear_sample, warp_pixels, warping_loss
 from nicer_stream.types import Intrinsics
 
@@ -139,3 +141,29 @@ def test_real_replica_gt_depth_and_poses_minimise_warping_loss():
     assert loss(T0) > 2.5 * true  # ignoring the 24 cm of motion
     for xi in ([0.05, 0, 0, 0, 0, 0], [0, 0.05, 0, 0, 0, 0], [0, 0, 0.05, 0, 0, 0], [0, 0, 0, 0.02, 0, 0], [0, 0, 0, 0, 0.02, 0]):
         assert loss(T1 @ _pose(xi)) > 2.5 * true  # 5 cm or ~1 degree off in the camera frame
+
+
+def test_warping_loss_compares_in_the_source_exposure_with_brightness():
+    """The partner saw the scene with gain 1.4 and bias -0.1, the source with gain 0.9 and bias
+    0.02: with both frames' brightness the warp is consistent again; without it, it is not."""
+    g = torch.Generator().manual_seed(6)
+    scene = torch.rand(48, 64, 3, generator=g) * 0.6 + 0.1
+    ab_src, ab_dst = torch.tensor([math.log(0.9), 0.02]), torch.tensor([math.log(1.4), -0.1])
+    uv = torch.rand(40, 2, generator=g) * torch.tensor([63.0, 47.0])
+    src = apply_brightness(bilinear_sample(scene, uv), ab_src)
+    dst = apply_brightness(scene, ab_dst)
+    valid = torch.ones(40, dtype=torch.bool)
+    assert warping_loss(src, [dst], [uv], [valid]).item() > 0.1
+    assert warping_loss(src, [dst], [uv], [valid], 0.0, ab_src, [ab_dst]).item() < 1e-5
+    x = ab_dst.clone().requires_grad_()
+    (gx,) = torch.autograd.grad(warping_loss(src, [dst], [uv], [valid], 0.05, ab_src, [x + 0.1]), [x])
+    assert torch.isfinite(gx).all() and gx.abs().sum() > 0
+
+
+def test_warping_loss_with_huber_keeps_l1_slope_for_large_errors():
+    g = torch.Generator().manual_seed(7)
+    img = torch.rand(48, 64, 3, generator=g)
+    uv = torch.rand(10, 2, generator=g) * torch.tensor([63.0, 47.0])
+    wrong = bilinear_sample(img, uv) + 1.0
+    valid = torch.ones(10, dtype=torch.bool)
+    assert abs(warping_loss(wrong, [img], [uv], [valid], 0.1).item() - (3.0 - 3 * 0.05)) < 1e-5

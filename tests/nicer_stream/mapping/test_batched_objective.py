@@ -64,15 +64,22 @@ def _setup(seed: int = 0):
 CFG = LossConfig(weights=LossWeights(rgb=1.0, warp=0.5, flow=0.01, depth=10.0, normal_l1=0.2, normal_angular=0.2))
 
 
-@pytest.mark.parametrize("fixed", [None, (20.0, 0.0)])
-def test_batched_terms_and_gradients_equal_the_frame_by_frame_reference(fixed):
+@pytest.mark.parametrize("fixed,real_camera", [(None, False), ((20.0, 0.0), False), (None, True)])
+def test_batched_terms_and_gradients_equal_the_frame_by_frame_reference(fixed, real_camera):
+    """Also with a real camera's terms: per-frame affine brightness (gradients to it too) and
+    Huber-smoothed RGB and warping residuals (threshold 0.1: about half the random residuals)."""
     frames, layout, out, xi = _setup()
     stack = FrameStack.build(frames)
     assert stack is not None and stack.fits(layout)
-    ref = mapping_terms(out, layout, CFG, fixed, None, random.Random(7))
-    new = mapping_terms_batched(out, layout, stack, CFG, fixed, None, random.Random(7))
-    inputs = [out.rgb, out.depth, out.normal, out.sdf_grad, xi]
-    for name in ("rgb", "warp", "flow", "depth", "normal_l1", "normal_angular", "eikonal"):
+    cfg, ab = CFG, None
+    if real_camera:
+        cfg = replace(CFG, affine_brightness=True, huber_delta=0.1)
+        ab = (torch.randn(len(frames), 2, generator=torch.Generator().manual_seed(3)) * 0.2).requires_grad_()
+    ref = mapping_terms(out, layout, cfg, fixed, None, random.Random(7), ab)
+    new = mapping_terms_batched(out, layout, stack, cfg, fixed, None, random.Random(7), ab)
+    inputs = [out.rgb, out.depth, out.normal, out.sdf_grad, xi] + ([ab] if real_camera else [])
+    names = ("rgb", "warp", "flow", "depth", "normal_l1", "normal_angular", "eikonal") + (("brightness",) if real_camera else ())
+    for name in names:
         a, b = getattr(ref, name), getattr(new, name)
         assert a is not None and b is not None, name
         assert torch.allclose(a, b, rtol=1e-5, atol=1e-7), (name, float(a), float(b))
@@ -82,6 +89,10 @@ def test_batched_terms_and_gradients_equal_the_frame_by_frame_reference(fixed):
             assert (x is None or not x.any()) == (y is None or not y.any()), name
             if x is not None and y is not None:
                 assert torch.allclose(x, y, rtol=1e-4, atol=1e-6), (name, float((x - y).abs().max()))
+    if real_camera:  # every frame's (a, b) takes a gradient from the RGB and warping terms
+        for name in ("rgb", "warp"):
+            (g,) = torch.autograd.grad(getattr(new, name), [ab], retain_graph=True)
+            assert torch.isfinite(g).all() and (g.abs().sum(-1) > 0).all(), name
 
 
 def test_a_degenerate_depth_fit_counts_as_zero_in_both():

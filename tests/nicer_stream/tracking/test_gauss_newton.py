@@ -4,7 +4,7 @@ import torch
 
 from nicer_stream.geometry.se3 import se3_exp
 from nicer_stream.render.renderer import rays_for_pixels
-from nicer_stream.tracking.gauss_newton import damped_step, ray_twist_jacobian, robust_weights
+from nicer_stream.tracking.gauss_newton import damped_step, ray_twist_jacobian
 from nicer_stream.types import Intrinsics
 
 
@@ -43,7 +43,3 @@ def test_damped_step_without_damping_is_least_squares():
     assert torch.allclose(step, ref, atol=1e-5)
     assert damped_step(J, r, torch.ones(50), 1.0).norm() < step.norm()  # damping shortens
 
-
-def test_huber_weights():
-    w = robust_weights(torch.tensor([0.0, 0.01, -0.05, 0.2, -1.0]), 0.05)
-    assert torch.allclose(w, torch.tensor([1.0, 1.0, 1.0, 0.25, 0.05]))
