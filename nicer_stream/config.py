@@ -344,8 +344,9 @@ class FrontendConfig:
     features: str = "sift"
     """'sift': SIFT keypoints matched to each track's latest descriptor; 'klt': Shi-Tomasi
     corners followed by pyramidal Lucas-Kanade (drifts on smooth texture: `frontend/sift.py`)."""
-    corners: int = 400
-    """Features per frame (SIFT keypoints, or KLT corners kept alive)."""
+    corners: int = 1000
+    """Features per frame (SIFT keypoints, or KLT corners kept alive); 400 lost the scale on a
+    real camera (docs/decisions.md)."""
     min_distance_px: float = 8.0
     """KLT: minimum spacing of corners, pixels."""
     fb_px: float = 1.0

@@ -291,7 +291,7 @@ class SlamSystem:
         return X if len(X) else None
 
     def _keyframe_taken(self, index: int, timestamp: float) -> None:
-        if self.keyframe_view is None:
+        if self.keyframe_view is None or index in self.keyframe_view.reasons:
             return
         reason = self._kf_reason.get(index) or "a failed keyframe's place"
         log.info("frame %d: keyframe (%s)", index, reason)
