@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from nicer_stream.frontend.health import pose_step
 from nicer_stream.frontend.triangulate import project
 from nicer_stream.types import Intrinsics
 
@@ -38,9 +39,8 @@ def view_change(points_kf: np.ndarray, T_kf: np.ndarray, t_kf: float, T: np.ndar
     """The change from the keyframe (its landmarks (M, 3) world, T_world_cam (4, 4), timestamp) to
     a frame at T (timestamp t); `depth`: the scene's median depth in the poses' unit."""
     overlap = float(in_view(points_kf, T, intr).mean()) if len(points_kf) else 0.0
-    d = np.linalg.inv(T_kf) @ T
-    angle = float(np.degrees(np.arccos(np.clip((np.trace(d[:3, :3]) - 1) / 2, -1.0, 1.0))))
-    baseline = float(np.linalg.norm(d[:3, 3])) / depth if depth > 0 else 0.0
+    dist, angle = pose_step(T_kf, T)
+    baseline = dist / depth if depth > 0 else 0.0
     return ViewChange(overlap, baseline, angle, t - t_kf)
 
 
