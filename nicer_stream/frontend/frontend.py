@@ -152,6 +152,12 @@ class ClassicalFrontend:
         X = np.stack([self.landmarks[i] for i in ids[has].tolist()]) if has.any() else np.zeros((0, 3))
         return uv[has], X
 
+    def common_tracks(self, a: int, b: int) -> int:
+        """How many tracks observed frames `a` and `b` share (0 when either is not observed)."""
+        if a not in self.obs or b not in self.obs:
+            return 0
+        return len(np.intersect1d(self.obs[a][0], self.obs[b][0]))
+
     def two_view(self, first: int, second: int, median_m: float, fallback: bool = False) -> TwoViewTracks | None:
         """A start without depth priors: `second`'s pose with `first` at the identity, from the
         essential matrix of their common tracks, scaled so the median depth of the triangulated

@@ -124,6 +124,7 @@ class SlamSystem:
         self.pending: list[MapFrame | None] = []  # held for the two-view start (None: corrupt)
         self._replay: set[int] = set()  # held frames the start has yet to record (flows to them stay)
         self.pending_raw: list[Frame] = []
+        self.unposed: list[int] = []  # frames the start passed over (no pose: `_slide_start`)
         self.init_note = ""
         self.scale_from = "depth-prior median"  # what `first_depth_median_m` sets: the first frame's ...
         # 'auto': the frontend where the depth prior needs good poses (stereo) or starts the SLAM.
@@ -170,6 +171,8 @@ class SlamSystem:
         if priors is not None and mf is not None:  # flows from stored (and held) frames to this one
             for kf in list(self.frames.values()) + [p for p in self.pending if p is not None]:
                 kf.add_flows(priors)
+        if self.model is None and self.pending:
+            self._slide_start(mf)
         if self.model is None and self._waits(mf):
             self.pending.append(mf)
             self.pending_raw.append(frame)
@@ -183,6 +186,30 @@ class SlamSystem:
         if self.pending:
             return self._start_two_view(mf, frame)
         return self._advance(mf, frame)
+
+    def _slide_start(self, mf: MapFrame | None) -> None:
+        """Without a depth prior the start needs tracks the first held view shares with a later
+        one; a turning camera loses them within a few frames (TUM fr1/rpy: 91 of 1000 after one
+        frame, none after 18). The first view then moves to the oldest held frame that still
+        shares `2 * min_inliers` tracks with `mf`; the frames it passes get no pose."""
+        if self.frontend is None or mf is None or self.pending[0] is None or self.pending[0].depth_prior is not None:
+            return
+        need = 2 * self.cfg.frontend.min_inliers
+        drop = 0
+        while (drop + 1 < len(self.pending) and self.pending[drop + 1] is not None
+               and self.frontend.common_tracks(self.pending[drop].index, mf.index) < need):
+            drop += 1
+        if not drop:
+            return
+        passed = [p.index for p in self.pending[:drop] if p is not None]
+        self.unposed += passed
+        self.pending, self.pending_raw = self.pending[drop:], self.pending_raw[drop:]
+        first = self.pending[0].index
+        self.keyframes = [first]
+        self.frontend.pinned = {first}
+        self._fview = None
+        log.info("two-view start: frame %d shares too few tracks with frame %d: the start moves to frame %d "
+                 "(frames %d-%d get no pose)", passed[0], mf.index, first, passed[0], passed[-1])
 
     def _waits(self, mf: MapFrame | None) -> bool:
         """Hold frames for the two-view start: until `init_frames` frames follow the first; without
@@ -723,10 +750,12 @@ class SlamSystem:
     # -- results ---------------------------------------------------------------------
     def health_summary(self) -> dict:
         """What went wrong in tracking, for `summary.json`: the frontend's health reports by kind
-        (and the first 100), the disagreements settled by evidence, the disagreement streaks."""
+        (and the first 100), the disagreements settled by evidence, the frames the start passed
+        over, the disagreement streaks."""
         return {"frontend_reports": self.health.counts(),
                 "frontend_report_lines": [str(r) for r in self.health.reports[:100]],
                 "disagreements_kept": dict(self.verdicts),
+                "unposed_before_start": list(self.unposed),
                 "disagreement_streaks": [{"first_frame": a, "frames": n} for a, n in self.disagreements.streaks],
                 "keyframe_reasons": ({str(k): r for k, r in self.keyframe_view.reasons.items()}
                                      if self.keyframe_view is not None else "every mapping.keyframe_every frames")}

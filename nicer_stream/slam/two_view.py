@@ -76,10 +76,13 @@ def essential_pose(uv0: np.ndarray, uv1: np.ndarray, intr: Intrinsics, thresh_px
     """T_world_cam (4, 4) float64 of a second view with the first at the identity and a unit
     baseline, from pixel matches uv0 -> uv1 (N, 2) by the essential matrix (RANSAC at
     `thresh_px`); with the inlier count and the (N,) bool inlier mask. None with fewer than
-    `min_inliers` inliers."""
+    `min_inliers` inliers or when the matches do not move (no essential matrix exists)."""
     n0 = camera_dirs(torch.from_numpy(uv0), intr)[:, :2].numpy()  # normalised image coordinates
     n1 = camera_dirs(torch.from_numpy(uv1), intr)[:, :2].numpy()
-    E, mask = cv2.findEssentialMat(n0, n1, np.eye(3), cv2.RANSAC, 0.999, thresh_px / intr.fx)
+    try:
+        E, mask = cv2.findEssentialMat(n0, n1, np.eye(3), cv2.RANSAC, 0.999, thresh_px / intr.fx)
+    except cv2.error:  # identical points (a camera at rest): OpenCV's 5-point solver asserts
+        return None
     if E is None or E.shape != (3, 3):
         return None
     n_in, R, t, mask = cv2.recoverPose(E, n0, n1, np.eye(3), mask=mask)

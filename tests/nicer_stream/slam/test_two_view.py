@@ -6,7 +6,7 @@ from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.priors import PriorEngine
 from nicer_stream.priors.oracle import OracleCorruption, OracleDepthNormal, OracleFlow
 from nicer_stream.runtime.frame_priors import make_engine, map_frame
-from nicer_stream.slam.two_view import behind_fraction, relative_pose, two_view_init
+from nicer_stream.slam.two_view import behind_fraction, essential_pose, relative_pose, two_view_init
 from sources import open_source
 from sources.base import SourceOptions
 
@@ -44,6 +44,12 @@ def test_two_view_recovers_pose_and_shift_up_to_the_scale_convention():
     w2_true, q2_true = _true_affine(fk, mk.depth_prior.numpy())
     w2, q2 = view.second_scale_shift
     assert abs(w2 / k - w2_true) < 0.03 * w2_true and abs(q2 - q2_true) < 0.02 * float(np.median(mk.depth_prior.numpy()))
+
+
+def test_a_camera_at_rest_has_no_essential_matrix():
+    f0 = next(iter(open_source("synthetic:room?frames=2", SourceOptions(max_side=160))))
+    uv = np.random.default_rng(0).random((200, 2)) * [f0.width, f0.height]
+    assert essential_pose(uv, uv.copy(), f0.intrinsics, 1.0, 30) is None  # OpenCV asserts on these
 
 
 def test_no_flow_no_start():
