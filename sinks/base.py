@@ -68,6 +68,10 @@ class Sink(ABC):
     def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
         """Named metrics (name -> value) at frame `index`."""
 
+    def log_warning(self, index: int, kind: str, message: str) -> None:
+        """A tracking warning at frame `index` (`slam.events.TrackingWarning`); sinks without a
+        text channel ignore it."""
+
     @abstractmethod
     def close(self) -> None:
         """Finalise outputs. Idempotent; must work after an exception."""
@@ -115,6 +119,9 @@ class ForwardingSink(Sink):
 
     def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
         self._forward("log_scalars", index, values)
+
+    def log_warning(self, index: int, kind: str, message: str) -> None:
+        self._forward("log_warning", index, kind, message)
 
 
 def pose_tq(T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

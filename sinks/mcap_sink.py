@@ -14,6 +14,7 @@ Topics (frame ids: `world`, `camera` = OpenCV optical frame):
                        after each map update (frame id `map_camera`, placed by /tf and /map/pose)
   /keyframes           PosesInFrame: every keyframe's pose after each map update
   /metrics/{name}      google.protobuf.DoubleValue
+  /tracking/warnings   Log (WARNING): the SLAM's tracking warnings (frontend health, disagreements)
 Every message's log_time and publish_time is the sensor time in ns (frame time; the last
 frame's time for trajectory, mesh, beta).
 """
@@ -27,6 +28,7 @@ import numpy as np
 from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.PackedElementField_pb2 import PackedElementField
 from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
 from foxglove_schemas_protobuf.Pose_pb2 import Pose
@@ -234,6 +236,12 @@ class McapSink(Sink):
         ns = self._time_ns.get(int(index), self._now_ns)
         for name, value in values.items():
             self._write(f"/metrics/{name}", DoubleValue(value=float(value)), ns)
+
+    def log_warning(self, index: int, kind: str, message: str) -> None:
+        ns = self._time_ns.get(int(index), self._now_ns)
+        msg = Log(level=Log.Level.WARNING, message=f"frame {index}: {kind}: {message}", name="nicer-stream")
+        msg.timestamp.FromNanoseconds(ns)
+        self._write("/tracking/warnings", msg, ns)
 
     def close(self) -> None:
         if self._closed:

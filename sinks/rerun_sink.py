@@ -16,6 +16,7 @@ Entities (world frame = the SLAM world, metres):
   world/mesh                 Mesh3D (logged rarely: every write is stored)
   world/beta                 Points3D at voxel centres, radius voxel/2, coloured by beta
   metrics/{name}             Scalars
+  tracking/warnings          TextLog (WARN): tracking warnings (frontend health, disagreements)
 Timelines: `frame` (sequence) and `sensor_time` (timestamp, ns exact).
 """
 from __future__ import annotations
@@ -59,7 +60,10 @@ def default_blueprint() -> rrb.Blueprint:
                     rrb.Spatial2DView(origin=render, contents=["$origin", "$origin/depth"], name="map depth"),
                     rrb.Spatial2DView(origin=render, contents=["$origin", "$origin/normal"], name="map normal"),
                 ),
-                rrb.TimeSeriesView(origin="metrics", name="metrics"),
+                rrb.Tabs(
+                    rrb.TimeSeriesView(origin="metrics", name="metrics"),
+                    rrb.TextLogView(origin="tracking", name="tracking warnings"),
+                ),
             ),
             column_shares=[3, 2],
         ),
@@ -199,6 +203,11 @@ class RerunSink(Sink):
         self._set_time(index)
         for name, value in values.items():
             self.rec.log(f"metrics/{name}", rr.Scalars(float(value)))
+
+    def log_warning(self, index: int, kind: str, message: str) -> None:
+        self._check_open()
+        self._set_time(index)
+        self.rec.log("tracking/warnings", rr.TextLog(f"frame {index}: {kind}: {message}", level=rr.TextLogLevel.WARN))
 
     def _grow(self, name: str, position: np.ndarray) -> None:
         """Add a camera centre to trajectory `name`; log its next piece when one is full."""

@@ -29,7 +29,7 @@ from nicer_stream.runtime.scene_export import MeshAborted, save_render, scene_me
 from nicer_stream.runtime.stage_timer import StageTimer
 from nicer_stream.runtime.stop import StopSignals
 from nicer_stream.render.renderer import render_image
-from nicer_stream.slam.events import FrameTracked, KeyframeAdded, MapUpdated
+from nicer_stream.slam.events import FrameTracked, KeyframeAdded, MapUpdated, TrackingWarning
 from nicer_stream.slam.system import SlamSystem
 from nicer_stream.runtime.source_setup import intrinsics_dict, open_configured
 from sources.base import SourceOptions
@@ -200,6 +200,9 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
         for e in events:
             if isinstance(e, KeyframeAdded):
                 stage.add_keyframe(waiting.get(e.index, frame))
+            if isinstance(e, TrackingWarning) and sink is not None:  # (the console has it from the log)
+                with timer.stage("sinks"):
+                    sink.log_warning(e.index, e.kind, e.message)
             if isinstance(e, MapUpdated) and live is not None and intr is not None:
                 with timer.stage("sinks"):
                     live(e, intr, render=e is not unrendered)
@@ -223,6 +226,8 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                 say(f"frame {e.index:5d}  {how}  {secs}{lost}  {status()}")
                 if sink is not None:
                     with timer.stage("sinks"):
+                        if e.lost:
+                            sink.log_warning(e.index, "lost", e.lost)
                         sink.log_frame(e.index, e.timestamp, f.rgb, f.intrinsics, e.T_world_cam,
                                        gt_T_world_cam=f.gt_pose, timestamp_ns=f.timestamp_ns)
                         if math.isfinite(e.loss):

@@ -41,4 +41,15 @@ class MapUpdated:
     """The map version it produced (mapping calls applied so far)."""
 
 
-Event = FrameTracked | KeyframeAdded | MapUpdated
+@dataclass(frozen=True)
+class TrackingWarning:
+    """Something about tracking a user should see at frame `index`: `kind` is a frontend health
+    report's kind (lost, reprojection, frozen, scale) or 'disagreement' (a streak of frames where
+    the frontend and the map disagree); `message` is one line."""
+
+    index: int
+    kind: str
+    message: str
+
+
+Event = FrameTracked | KeyframeAdded | MapUpdated | TrackingWarning

@@ -31,7 +31,7 @@ from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField
 from nicer_stream.model.bound_estimate import bound_around, bound_from_config, bound_from_depth
 from nicer_stream.model.geometry import initial_sphere
-from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpdated
+from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpdated, TrackingWarning
 from nicer_stream.slam.map_jobs import InlineMapping, MapJob, MappingExecutor, MapResult, job_frames, take_snapshot
 from nicer_stream.slam.motion import frontend_disagreement, predict_pose, tracking_failure
 from nicer_stream.slam.pose_corrections import spread_corrections
@@ -147,6 +147,7 @@ class SlamSystem:
         self._distrusted: set[int] = set()  # frames whose frontend pose failed them
         self.verdicts = {"map": 0, "frontend": 0, "lost": 0}  # disagreements settled by evidence
         self.disagreements = DisagreementStreaks()
+        self._warnings: list[TrackingWarning] = []  # for the caller's sinks, returned by `step`
 
     # -- per frame -------------------------------------------------------------------
     def step(self, frame: Frame, priors: Priors | None = None) -> list[Event]:
@@ -156,7 +157,9 @@ class SlamSystem:
         if frame.gt_pose is not None or frame.gt_depth is not None:
             raise UserError("SlamSystem.step got a frame with ground truth: pass frame.without_ground_truth()")
         done = self._collect()  # mapping calls that finished on the worker since the last frame
-        return done + self._step(frame, priors)
+        events = done + self._step(frame, priors)
+        warnings, self._warnings = self._warnings, []
+        return events + warnings
 
     def _step(self, frame: Frame, priors: Priors | None) -> list[Event]:
         mf = MapFrame.from_frame(frame, priors, self.device) if np.isfinite(frame.rgb).all() else None
@@ -548,8 +551,9 @@ class SlamSystem:
         (`tracking_policy.judge_disagreement`); (pose, reason the frame is not trusted or None)."""
         gap = frontend_disagreement(res.T_world_cam, T_front, T_prev, front.median_depth, self.cfg.frontend)
         if self.disagreements.observe(index, gap is not None):
-            log.warning("frame %d: the frontend and the map disagree on %d refined frames in a row", index,
-                        self.disagreements.run)
+            msg = f"the frontend and the map disagree on {self.disagreements.run} refined frames in a row"
+            log.warning("frame %d: %s", index, msg)
+            self._warnings.append(TrackingWarning(index, "disagreement", msg))
         if gap is None:
             return res.T_world_cam, None
         v = judge_disagreement(res.loss, res.initial_loss, res.T_world_cam, T_front, T_motion, self.recent_losses,
@@ -593,6 +597,7 @@ class SlamSystem:
                                         self.frontend.intr, None if front is None else front.median_depth)
         for r in reports:
             log.warning("%s", r)
+            self._warnings.append(TrackingWarning(r.index, f"frontend {r.kind}", r.message))
         if front is not None and any(r.kind != "lost" for r in reports):
             self._distrusted.add(index)
             return None

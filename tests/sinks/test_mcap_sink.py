@@ -54,6 +54,7 @@ def recording(tmp_path_factory):
             sink.log_frame(i, 0.0, smooth_rgb(i), INTR, T, depth=DEPTH, normal=normal,
                            gt_T_world_cam=poses[0], timestamp_ns=T0_NS + i * 10**8)
             sink.log_scalars(i, {"loss": 0.5 * i})
+        sink.log_warning(1, "frontend frozen", "the pose stayed while its tracks moved")
         sink.log_trajectory(poses[:, :3, 3], rotations=poses[:, :3, :3])
         sink.log_mesh(TETRA_V, TETRA_F, np.full((4, 3), 0.5))
         sink.log_beta_voxels(BETA_C, np.arange(5.0), 0.2)
@@ -70,6 +71,14 @@ def test_topics_counts_and_log_times(recording):
         assert [t for t, _ in msgs[topic]] == [T0_NS + 2 * 10**8], topic  # last frame's time
     _, img = msgs["/camera/image"][0]
     assert img.timestamp.ToNanoseconds() == T0_NS
+
+
+def test_tracking_warnings_are_log_messages_at_their_frame_time(recording):
+    msgs, _ = recording
+    (t, log), = msgs["/tracking/warnings"]
+    assert t == T0_NS + 10**8
+    assert log.message == "frame 1: frontend frozen: the pose stayed while its tracks moved"
+    assert log.level == 3  # foxglove.Log.WARNING
 
 
 def test_poses_round_trip(recording):

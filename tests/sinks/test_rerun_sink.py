@@ -45,6 +45,7 @@ def write_recording(path, poses) -> None:
         sink.log_frame(i, 0.0, smooth_rgb(i), INTR, T, depth=depth, normal=normal,
                        gt_T_world_cam=T, timestamp_ns=T0_NS + i * 10**8)
         sink.log_scalars(i, {"loss": 0.5 * i, "psnr_db": 20.0 + i})
+    sink.log_warning(2, "disagreement", "the frontend and the map disagree on 5 refined frames in a row")
     sink.log_trajectory(poses[:, :3, 3])
     sink.log_mesh(TETRA_V, TETRA_F, TETRA_C)
     sink.log_beta_voxels(np.random.default_rng(0).random((5, 3)), np.arange(5.0), 0.2)
@@ -107,6 +108,15 @@ def test_mesh_and_beta(recording):
     assert len(beta["Points3D:positions"][0]) == 5
     assert beta["Points3D:radii"][0] == pytest.approx([0.1])
     assert len(set(beta["Points3D:colors"][0])) == 5  # distinct betas -> distinct colours
+
+
+def test_tracking_warnings_are_text_logs_at_their_frame(recording):
+    cols, _ = recording
+    warn = cols["/tracking/warnings"]
+    assert warn["frame"] == [2]
+    text = str(warn["TextLog:text"][0])
+    assert "frame 2: disagreement: the frontend and the map disagree" in text, warn
+    assert "WARN" in str(warn["TextLog:level"][0])
 
 
 def test_scalars_and_trajectories(recording):

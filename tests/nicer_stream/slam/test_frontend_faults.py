@@ -10,7 +10,7 @@ import torch
 
 from nicer_stream.config import load
 from nicer_stream.frontend.frontend import FrontendPose
-from nicer_stream.slam.events import FrameTracked
+from nicer_stream.slam.events import FrameTracked, TrackingWarning
 from nicer_stream.slam.system import SlamSystem
 from sources import open_source
 from sources.base import SourceOptions
@@ -57,11 +57,13 @@ def test_a_faulty_frontend_is_reported_and_not_trusted(cfg, monkeypatch, kind):
     monkeypatch.setattr(type(slam.frontend), "estimate", make(type(slam.frontend).estimate))
     frames = [f.without_ground_truth() for f in open_source("synthetic:room?frames=60",
                                                               SourceOptions(max_frames=FAULT_FROM + 18, max_side=160))]
-    tracked = {}
+    tracked, warned = {}, []
     for f in frames:
         for e in slam.step(f):
             if isinstance(e, FrameTracked):
                 tracked[e.index] = e
+            if isinstance(e, TrackingWarning):
+                warned.append(e)
     faults = [r for r in slam.health.reports if r.index >= FAULT_FROM and r.kind != "lost"]
     assert faults, f"no report of the {kind} frontend: {[str(r) for r in slam.health.reports]}"
     assert faults[0].index < FAULT_FROM + 10, str(faults[0])
@@ -69,5 +71,7 @@ def test_a_faulty_frontend_is_reported_and_not_trusted(cfg, monkeypatch, kind):
     for i in range(faults[0].index, len(frames)):
         if i in returned and i >= FAULT_FROM and i not in slam.lost_frames:
             assert i in slam._distrusted, f"frame {i} kept the faulty pose without a check"
+    # ... and handed to the sinks as an event (Rerun's text log, MCAP's /tracking/warnings)
+    assert any(w.index == faults[0].index and w.kind == f"frontend {faults[0].kind}" for w in warned), warned
     summary = slam.health_summary()
     assert sum(summary["frontend_reports"].values()) >= 1
