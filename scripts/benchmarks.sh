@@ -5,6 +5,8 @@
 #   and of this tree (uncommitted edits included) back to back, then scripts/speedup_table.py
 #   (~15 min). EXTRA="..." appends arguments to both runs (e.g. EXTRA="--max-frames 3"), NEW_EXTRA="..."
 #   to this tree's alone (e.g. NEW_EXTRA="--config candidate.toml": settings the baseline does not know).
+#   SOURCE=URI runs another log instead of the Replica clip (e.g. SOURCE=mcap:LOG.mcap EXTRA="--max-frames
+#   300": a real 30 Hz log), PRIORS=NAME the same priors in both runs (default: the oracle's near-GT priors).
 # Tables: .venv/bin/python scripts/eval_table.py OUT... [--reference OUTROOT/map_oracle]
 # run10-paper needs hours here: Ctrl-C writes what was computed (trajectory so far, mesh, eval).
 set -euo pipefail
@@ -34,7 +36,7 @@ sys.exit(f"imported from outside {sys.argv[1]}: {bad}" if bad else 0)' "$tree")
   done
   # shellcheck disable=SC2086  # EXTRA is split into arguments on purpose
   (cd "$tree" && PYTHONPATH="$tree" /usr/bin/time -f "%e %M" -o "$dir/time.txt" $py -m nicer_stream.cli.main run \
-     --source "replica:$root/../shared/data/replica_room0_20f" --priors "$3" --preset fast --out "$dir" ${EXTRA:-} ${4:-})
+     --source "${SOURCE:-replica:$root/../shared/data/replica_room0_20f}" --priors "${PRIORS:-$3}" --preset fast --out "$dir" ${EXTRA:-} ${4:-})
   echo "wall $(cut -d' ' -f1 "$dir/time.txt") s, peak RSS $(cut -d' ' -f2 "$dir/time.txt") KB"
 }
 # seed_runs NAME SOURCE PRIORS [CONFIG [ARGS...]]: `nicer-stream run` (`fast`) on seeds 0 1 2 into

@@ -60,6 +60,9 @@ eikonal_points = 16
 batch_iters = 6
 every = 2
 keyframe_every = 2
+# A keyframe and a mapping call every 2 frames: the schedule these tests count on (view
+# keyframes, `slam/keyframes.py`, are tested on their own).
+keyframes = "stride"
 [tracking]
 iters = 3
 rays = 64

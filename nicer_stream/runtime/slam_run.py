@@ -243,8 +243,9 @@ def _run(req: RunRequest, stop: StopSignals) -> RunOutcome:
                 read_at[frame.index] = (time.perf_counter(), slam.map_version > 0)
                 intr = frame.intrinsics
                 with timer.stage("priors"):
-                    pri = stage(frame)
-                events, step_s = timed(lambda: slam.step(frame.without_ground_truth(), pri))
+                    pri = stage(frame, flows=False)
+                # Flows when the SLAM asks for them (most frames of a log never become keyframes).
+                events, step_s = timed(lambda: slam.step(frame.without_ground_truth(), pri, stage.deferred_flows))
                 n += 1
                 waiting[frame.index] = frame  # until its pose event (the two-view start holds frames)
                 if not any(isinstance(e, FrameTracked) and e.index == frame.index for e in events):

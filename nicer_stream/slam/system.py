@@ -20,7 +20,7 @@ import torch
 
 from nicer_stream.config import SlamConfig
 from nicer_stream.frontend.frontend import ClassicalFrontend, FrontendPose, TwoViewTracks
-from nicer_stream.frontend.health import FrontendHealth
+from nicer_stream.frontend.health import FrontendHealth, reprojection_error
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.depth_shift import shift_from_normals
 from nicer_stream.mapping.mapper import Mapper
@@ -148,15 +148,25 @@ class SlamSystem:
         self.verdicts = {"map": 0, "frontend": 0, "lost": 0}  # disagreements settled by evidence
         self.disagreements = DisagreementStreaks()
         self._warnings: list[TrackingWarning] = []  # for the caller's sinks, returned by `step`
+        self._more_flows: Callable[[], Priors] | None = None  # the latest frame's deferred flows
 
     # -- per frame -------------------------------------------------------------------
-    def step(self, frame: Frame, priors: Priors | None = None) -> list[Event]:
+    def step(self, frame: Frame, priors: Priors | None = None,
+             flows: Callable[[], Priors] | None = None) -> list[Event]:
         """Track `frame` (GT-free), add it as a keyframe / map when the schedule says so.
         With `mapping.init = 'two_view'` the first frames are held until the second view
-        arrives; their events come then."""
+        arrives; their events come then. `flows`, when given, returns the frame's flows that
+        `priors` lacks: called only when the frame needs them (it becomes a keyframe or is mapped,
+        or has no frontend pose to start tracking from), or at once before the start and
+        without a frontend."""
         if frame.gt_pose is not None or frame.gt_depth is not None:
             raise UserError("SlamSystem.step got a frame with ground truth: pass frame.without_ground_truth()")
         done = self._collect()  # mapping calls that finished on the worker since the last frame
+        self._more_flows = flows
+        if flows is not None and (self.model is None or self.frontend is None or self.pending):
+            priors = Priors(priors.frame_index, priors.provider, priors.depth, priors.normal,
+                            priors.flows + flows().flows) if priors is not None else flows()
+            self._more_flows = None
         events = done + self._step(frame, priors)
         warnings, self._warnings = self._warnings, []
         return events + warnings
@@ -213,6 +223,15 @@ class SlamSystem:
         self._fview = None
         log.info("two-view start: frame %d shares too few tracks with frame %d: the start moves to frame %d "
                  "(frames %d-%d get no pose)", passed[0], mf.index, first, passed[0], passed[-1])
+
+    def _attach_flows(self, mf: MapFrame) -> None:
+        """The deferred flows of the latest frame `mf` (`step`'s `flows`) into it and the stored
+        frames they start at; once."""
+        if self._more_flows is None:
+            return
+        priors, self._more_flows = self._more_flows(), None
+        for f in {id(f): f for f in [*self.frames.values(), mf]}.values():
+            f.add_flows(priors)
 
     def _waits(self, mf: MapFrame | None) -> bool:
         """Hold frames for the two-view start: until `init_frames` frames follow the first; without
@@ -272,13 +291,15 @@ class SlamSystem:
         # refined: otherwise the map would go `keyframe_every` more frames without a keyframe.
         self._keyframe_owed = is_kf and not trusted and self.cfg.tracking.refine == "keyframes"
         self._frontend_pose(i, self.poses[i], trusted or i in self._frontend_kept)
+        due = self._mapping_slot(len(self.order)) or (self.keyframe_view is not None and is_kf and len(self.order) > 1)
+        if is_kf or due or self._map_due:  # a keyframe or mapped: its flows are needed (before any
+            self._attach_flows(self.frames[i])  # keyframe is halved: flows into those are dropped)
         if is_kf and trusted and i not in self.keyframes:
             self.keyframes.append(i)
             events.append(KeyframeAdded(i))
             self._cap_keyframes()
         if is_kf and trusted:  # (the first frame was made a keyframe when it was held)
             self._keyframe_taken(i, frame.timestamp)
-        due = self._mapping_slot(len(self.order)) or (self.keyframe_view is not None and is_kf and len(self.order) > 1)
         if trusted and (due or self._map_due):
             events += self._collect()  # a call that has just finished frees the worker
             if self.mapping.busy():  # the worker is still on the last call: map at the next frame
@@ -360,6 +381,8 @@ class SlamSystem:
             return events + self.finish()
         if self.model is None:
             return []
+        if self.order and self.order[-1] in self.frames:  # the closing call maps the latest frame
+            self._attach_flows(self.frames[self.order[-1]])
         events = self.wait_for_mapping() + self._refine_unrefined_last()
         if self.cfg.mapping.final_iters is not None:
             events += self._map(self.order[-1], self.cfg.mapping.final_iters, bundle_adjust=False, closing=True)
@@ -509,6 +532,7 @@ class SlamSystem:
             T_pred = torch.as_tensor(front.T_world_cam, dtype=T_pred.dtype, device=T_pred.device)
             self._frontend_at[mf.index] = front
         elif init == "flow":
+            self._attach_flows(mf)
             T_pred = self._flow_init(mf, T_pred)
         n = len(self.order) + 1
         if front is not None:
@@ -556,8 +580,11 @@ class SlamSystem:
             self._warnings.append(TrackingWarning(index, "disagreement", msg))
         if gap is None:
             return res.T_world_cam, None
+        luv, X = self.frontend.landmark_observations(index)
+        reproj = reprojection_error(res.T_world_cam.double().cpu().numpy(), X, luv, self.frontend.intr) if len(X) else 0.0
         v = judge_disagreement(res.loss, res.initial_loss, res.T_world_cam, T_front, T_motion, self.recent_losses,
-                               self.cfg.tracking.loss_jump, self.cfg.frontend.evidence_ratio)
+                               self.cfg.tracking.loss_jump, self.cfg.frontend.evidence_ratio, reproj,
+                               self.cfg.frontend.reproj_px)
         self.verdicts[v.keep] += 1
         log.info("frame %d: %s; %s: %s pose kept", index, gap, v.why, v.keep if v.keep != "lost" else "no")
         if v.keep == "map":

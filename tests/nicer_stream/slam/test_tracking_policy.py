@@ -24,6 +24,14 @@ def test_alike_losses_go_to_the_pose_nearer_the_motion():
     assert v.keep == "frontend" and "nearer the motion" in v.why
 
 
+def test_a_lower_loss_does_not_win_for_a_pose_that_misplaces_the_landmarks():
+    # The refined pose minimised the loss against the map: it must still place the tracks.
+    v = judge_disagreement(0.05, 0.10, T(0.1), T(0.0), T(0.1), RECENT, 3.0, 0.85, reproj_map_px=9.0, reproj_limit_px=4.0)
+    assert v.keep == "frontend" and "misplaces the frame's landmarks" in v.why
+    assert judge_disagreement(0.05, 0.10, T(0.1), T(0.0), T(0.1), RECENT, 3.0, 0.85, reproj_map_px=3.0,
+                              reproj_limit_px=4.0).keep == "map"
+
+
 def test_a_frame_neither_pose_explains_is_lost():
     v = judge_disagreement(0.5, 0.6, T(0.1), T(0.0), T(0.0), RECENT, 3.0, 0.85)
     assert v.keep == "lost" and "neither pose" in v.why
