@@ -95,7 +95,7 @@ class RenderConfig:
     above -keep_band_m) go through the network however little light reaches them, so the
     Eikonal term keeps its points there. 0: none kept for that. With 1e-4 and 0.1 m Replica runs were
     ~5% shorter (separate runs) but lost 1 dB of PSNR over five seeds, one map badly
-    (docs/performance.md, stop 41): an option, not a preset's."""
+    (docs/performance.md): an option, not a preset's."""
     near_m: float = 0.05
     """Closest sample distance from the camera, metres."""
     beta_mode: str = "adaptive"
@@ -227,7 +227,7 @@ class MappingConfig:
     frontend's tracks grow to `frontend.init_parallax_deg` of parallax with the first frame. A
     slow camera or a 30 fps video needs more than `init_frames`: the synthetic room at 300 frames
     reached it at frame 11, and starting from the first frame alone at 10 cost its first 100
-    frames' map 6x in depth L1 (docs/priors.md, stop 54). Motion that never reaches it (forward
+    frames' map 6x in depth L1 (docs/priors.md). Motion that never reaches it (forward
     motion) starts from the first frame once these are held."""
     batch_iters: int = 2000
     """Iterations of `nicer-stream map` (all frames in one window, known poses)."""
@@ -315,7 +315,7 @@ class TrackingConfig:
     """'gauss_newton': the pose is the mean of the last this many iterates (1: the last)."""
     lr_decay: float = 1.0
     """'adam': the learning rate falls geometrically from `lr` to `lr * lr_decay` at the last step
-    (1: constant). Replica, `oracle:clean`, five seeds (docs/performance.md, stop 41): with
+    (1: constant). Replica, `oracle:clean`, five seeds (docs/performance.md): with
     `iters = 40` and 0.1, ATE 0.21 -> 0.19 cm, trajectory-aligned completion ratio 58 -> 73%,
     runs ~5% longer (separate runs); 0.3 at 20 iterations changed nothing; on the demo room (`stereo`, three
     seeds) ATE 0.63 -> 0.82 cm. Not a preset's."""
@@ -423,9 +423,9 @@ class StereoConfig:
     side where there is one, then average the depth down to the map's pixels (None: the map's
     images); above 640 px the window and the filters scale with it (`priors/stereo.py:
     scaled_to`). Replica clip, GT poses: L1 12.3 cm at 320 px -> 8.2 cm at 640 (5x the sweep's
-    cost); with stop 44's filters, keyframes 0/5/10/15/19 (`runs/s48/planes.py`): 640 / 960 / 1200
+    cost); with the stereo filters, keyframes 0/5/10/15/19: 640 / 960 / 1200
     px: 5.93 / 5.18 / 5.02 cm on 53.4 / 58.6 / 60.8% of the pixels, 0.6 / 1.3 / 2.3 s per sweep;
-    SLAM runs, `--priors stereo`, seeds 0-2 (docs/priors.md, stop 47): mesh accuracy 5.75 /
+    SLAM runs, `--priors stereo`, seeds 0-2 (docs/priors.md): mesh accuracy 5.75 /
     5.18 / 6.04 cm. The monocular fusion sweeps at `fusion_max_side` instead."""
     fusion_max_side: int | None = 640
     """`max_side` of the sweep a monocular prior is fitted to (`mono_fusion`). Replica clip,
@@ -484,9 +484,9 @@ class StereoConfig:
     `priors/plane_fill.py`); 0: off."""
     fill_planes: int = 1
     """Planes per hole: up to this many walls, each hole pixel taking the nearest (a blank room
-    corner). Replica, GT poses, keyframes 0/5/10/15/19 (`runs/s47/fillcmp.py`): pixels with a
-    depth 61.7% (stop 44's one plane within 2%, no test of what lies behind) -> 64.7% (1) / 71.1%
-    (3), depth L1 5.58 -> 5.58 / 5.56 cm (filled pixels at 2.2 / 3.5 cm); SLAM runs, seeds 0-2 (docs/priors.md, stop 46): mesh
+    corner). Replica, GT poses, keyframes 0/5/10/15/19: pixels with a
+    depth 61.7% (one plane within 2%, no test of what lies behind) -> 64.7% (1) / 71.1%
+    (3), depth L1 5.58 -> 5.58 / 5.56 cm (filled pixels at 2.2 / 3.5 cm); SLAM runs, seeds 0-2 (docs/priors.md): mesh
     accuracy 6.69 -> 5.75 / 5.75 cm, depth L1 6.90 -> 6.65 / 7.41 cm, PSNR 31.22 -> 31.36 / 30.48 dB:
     on the runs' own poses the rims are noisier and a second plane is more often wrong."""
     normals: bool = False
@@ -549,8 +549,8 @@ class BoundConfig:
     """SLAM with 'auto': the first camera(s) at least this fraction of the half side inside the
     cube; where one is nearer a face (a first frame's points lie in front of it, so centred on
     them the cube starts at the camera), the cube slides away from that face, as far as keeps the
-    points (see `points_edge`) inside. 0: centred on the points (before stop 53, when the demo
-    room's back wall fell outside the cube). Mapping with known poses keeps the cube centred on
+    points (see `points_edge`) inside. 0: centred on the points (the demo
+    room's back wall then fell outside the cube). Mapping with known poses keeps the cube centred on
     every frame's points."""
     points_edge: float = 0.05
     """With `camera_margin`: the points' 1-99 percentile box, grown by this fraction of its
@@ -647,7 +647,7 @@ def fast() -> SlamConfig:
         # the map a shorter schedule loses: 200/60/100 instead of 300/80/150, Replica (realistic
         # `oracle`, seed 0) 108 -> 88 s, mesh 3.74 / 2.51 -> 3.65 / 2.30 cm, depth L1 3.80 -> 3.98
         # cm, PSNR 31.47 -> 30.45 dB (seeds 0-2: 0.5 dB less PSNR, the mesh better); the demo room
-        # 185 -> 151 s, seed 0 better on every metric, seed 1 mixed (docs/performance.md, stop 50).
+        # 185 -> 151 s, seed 0 better on every metric, seed 1 mixed (docs/performance.md).
         mapping=MappingConfig(iters=60, first_iters=200, rays=1024, eikonal_points=256, batch_iters=350,
                               init="two_view", keyframe_every=5, final_iters=100,
                               final_color_start=0.25, final_lr_end_factor=0.1),
@@ -660,7 +660,7 @@ def fast() -> SlamConfig:
         # pixels; only pixels ending in mapped voxels.
         # The classical frontend seeds every pose and only keyframes are refined against the map,
         # with 20 Adam iterations (a keyframe whose refinement fails keeps the frontend's pose).
-        # Measured 2026-12-03 (docs/performance.md, `oracle:clean`): Replica clip, seeds 0-2, ATE
+        # Measured (docs/performance.md, `oracle:clean`): Replica clip, seeds 0-2, ATE
         # 0.22-0.26 cm, mesh 2.84-2.95 / 1.75-1.91 cm, PSNR 29.5-30.6 dB, seed 0 in 144 s where refining
         # every frame with 60 iterations took 477 s (ATE 0.30 cm); demo room ATE 0.79 cm, mesh
         # 3.54 / 2.81 cm against 0.75 cm and 4.46 / 3.39 cm refining every frame. The frontend alone

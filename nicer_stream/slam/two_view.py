@@ -36,7 +36,7 @@ log = logging.getLogger(__name__)
 # pixels below 0.1 m and the whole run broke (ATE 38 cm); correct fits put none there.
 MAX_BEHIND = 0.01
 # The two-view fit's depth of the first frame may differ from its normal prior's start by at most
-# this fraction of the median. Measured on frames 0/10 (`runs/s35/agree.py`, docs/priors.md): with
+# this fraction of the median. Measured on frames 0/10 (docs/priors.md): with
 # GT flow 1.0-1.9% on Replica and the synthetic room (the two-view shift then 0.1-10% of the median
 # off, the normals' 1-5%); with DIS flow 5.9-80% (the two-view's 12-93% off, the normals' 1-5%).
 MAX_DISAGREEMENT = 0.04
