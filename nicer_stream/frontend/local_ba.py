@@ -9,7 +9,8 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import lil_matrix
 
-from nicer_stream.frontend.schur_ba import inlier_rms, reprojection, so3_exp
+from nicer_stream.frontend.schur_ba import inlier_rms, reprojection
+from nicer_stream.geometry.se3 import so3_exp_np as so3_exp
 from nicer_stream.types import Intrinsics
 
 

@@ -19,12 +19,11 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 import torch
 
-from nicer_stream.frontend.triangulate import project
-from nicer_stream.geometry.camera import camera_dirs, in_image, pixel_grid
+from nicer_stream.geometry.camera import in_image, pixel_grid, project_world
+from nicer_stream.geometry.pose_estimation import essential_pose
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.prior_alignment import align_frame_prior, robust_affine_fit
 from nicer_stream.types import Intrinsics
@@ -69,25 +68,6 @@ def relative_pose(first: MapFrame, second: MapFrame, max_points: int = 5000, thr
     uv1 = uv0 + flow.reshape(-1, 2).cpu().numpy()[ids].astype(np.float64)
     rel = essential_pose(uv0, uv1, first.intr, thresh_px, 100)
     return None if rel is None else (rel[0], rel[1])
-
-
-def essential_pose(uv0: np.ndarray, uv1: np.ndarray, intr: Intrinsics, thresh_px: float,
-                   min_inliers: int) -> tuple[np.ndarray, int, np.ndarray] | None:
-    """T_world_cam (4, 4) float64 of a second view with the first at the identity and a unit
-    baseline, from pixel matches uv0 -> uv1 (N, 2) by the essential matrix (RANSAC at
-    `thresh_px`); with the inlier count and the (N,) bool inlier mask. None with fewer than
-    `min_inliers` inliers."""
-    n0 = camera_dirs(torch.from_numpy(uv0), intr)[:, :2].numpy()  # normalised image coordinates
-    n1 = camera_dirs(torch.from_numpy(uv1), intr)[:, :2].numpy()
-    E, mask = cv2.findEssentialMat(n0, n1, np.eye(3), cv2.RANSAC, 0.999, thresh_px / intr.fx)
-    if E is None or E.shape != (3, 3):
-        return None
-    n_in, R, t, mask = cv2.recoverPose(E, n0, n1, np.eye(3), mask=mask)
-    if n_in < min_inliers:
-        return None
-    T_second_first = np.eye(4)
-    T_second_first[:3, :3], T_second_first[:3, 3] = R, t[:, 0]
-    return np.linalg.inv(T_second_first), int(n_in), mask[:, 0] > 0
 
 
 def _known(prior: torch.Tensor) -> torch.Tensor:
@@ -160,7 +140,7 @@ def prior_fit_to_points(frame: MapFrame, T_world_cam: np.ndarray, points: np.nda
     more than `max_behind` of the prior's pixels at non-positive depth."""
     if frame.depth_prior is None or len(points) == 0:
         return None
-    uv, z = project(T_world_cam, np.asarray(points, np.float64), frame.intr)
+    uv, z = project_world(T_world_cam, np.asarray(points, np.float64), frame.intr)
     seen = (z > 0) & in_image(uv, frame.intr)
     u, v = np.round(uv[seen]).astype(int).clip(0, [frame.intr.width - 1, frame.intr.height - 1]).T
     prior = frame.depth_prior.detach().double().cpu().numpy()[v, u]

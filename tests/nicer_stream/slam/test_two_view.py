@@ -171,7 +171,7 @@ def test_the_start_from_the_frontends_tracks_places_the_second_view_and_both_pri
     degrees of GT (its direction within 1.5), and both priors fitted to the tracks' points."""
     from nicer_stream.config import FrontendConfig
     from nicer_stream.frontend.frontend import ClassicalFrontend
-    from nicer_stream.frontend.triangulate import project
+    from nicer_stream.geometry.camera import project_world as project
     from nicer_stream.geometry.camera import in_image
     from nicer_stream.slam.two_view import two_view_from_tracks
 
