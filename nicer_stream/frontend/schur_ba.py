@@ -1,7 +1,7 @@
 """Bundle adjustment by Levenberg-Marquardt on the Schur complement (pure numpy).
 
-The same problem as `local_ba.bundle_adjust` (which hands it to scipy's least squares and
-stays as the reference): poses and points from pixel observations under a Huber loss, the
+The same problem as the scipy least-squares reference its test compares it with
+(`tests/nicer_stream/frontend/local_ba_reference.py`): poses and points from pixel observations under a Huber loss, the
 first `n_fixed` poses held. Each point couples only to the cameras that see it, so its 3x3
 block is eliminated first and the step solves a (6F, 6F) system for the F free cameras. On a
 15-camera window with 23k observations it converged in 0.8-1.1 s where scipy's sparse trust
@@ -59,7 +59,7 @@ def bundle_adjust_schur(poses: list[np.ndarray], n_fixed: int, points: np.ndarra
     (P, 3) from observations: camera ids `cam` (M,), point ids `pt` (M,), pixels `uv` (M, 2);
     one observation per (camera, point). Stops after `max_iters` iterations or when the cost
     falls by less than `tol` relatively. Returns (poses, points, RMS reprojection error in
-    pixels over the observations within 3 `huber_px`), as `local_ba.bundle_adjust`."""
+    pixels over the observations within 3 `huber_px`), as the reference."""
     cw = np.stack([np.linalg.inv(T) for T in poses])
     R, t, X = cw[:, :3, :3].copy(), cw[:, :3, 3].copy(), points.astype(np.float64).copy()
     n_cam, n_pts, n_free = len(poses), len(points), len(poses) - n_fixed

@@ -38,14 +38,6 @@ def composite_deltas(t: torch.Tensor, far: torch.Tensor) -> torch.Tensor:
     return torch.cat([t[:, 1:] - t[:, :-1], last], dim=-1)
 
 
-@torch.no_grad()
-def probe_weights(model: SceneModel, beta: BetaField, x: torch.Tensor, deltas: torch.Tensor, use_fine: bool,
-                  stop_tau: float | None = None, segment: int = SEGMENT) -> torch.Tensor:
-    """Weights (R, P) of the probes x (R, P, 3) (normalised, sorted along each ray) with
-    interval lengths `deltas` (R, P): `probe_pass`'s weights."""
-    return probe_pass(model, beta, x, deltas, use_fine, stop_tau, segment)[0]
-
-
 # The SDF `probe_pass` reports at probes it skipped: behind the point where their ray's light was
 # spent, so "inside a solid" (density 1/beta) is what they stand for.
 SKIPPED_SDF = -1e3
