@@ -40,7 +40,7 @@ from nicer_stream.types import FlowPrior, Frame, Intrinsics
 
 _NEEDS_GT = (
     "the 'oracle' prior needs ground truth {what}, and frame {index} has none: "
-    "use a source with GT (replica:, synthetic:, ...) or another provider (e.g. --provider none / --flow dis)"
+    "use a source with GT (replica:, synthetic:, ...) or another prior (e.g. depth none, flow dis)"
 )
 
 
