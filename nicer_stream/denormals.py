@@ -3,8 +3,8 @@ denormals-are-zero on the calling thread and its OpenMP workers, `model/kernels/
 
 Products of small gradients (a 1e-10 adjoint times a sigmoid of 1e-35) land below float32's
 smallest normal (1.2e-38), and x86 CPUs compute with such operands on a microcode path ~100x
-slower: one weight-gradient product of the fine MLP took 15 ms instead of 1 (`docs/performance.md`,
-stop 32). Flushed, they are 0, an absolute change below 1.2e-38. The setting is per thread and is
+slower: one weight-gradient product of the fine MLP took 15 ms instead of 1 (docs/decisions.md).
+Flushed, they are 0, an absolute change below 1.2e-38. The setting is per thread and is
 scoped (`flush_denormals()`), so code outside the SLAM's optimisation loops (trimesh's rtree,
 which crashed with it on) never sees it. NICER_STREAM_FTZ=0 keeps IEEE denormals (the reference);
 without the compiled helper, only the calling thread is set (`torch.set_flush_denormal`).

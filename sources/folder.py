@@ -9,6 +9,7 @@ the `?fps=` query (default 30), since a bare folder has no timing.
 """
 from __future__ import annotations
 
+import importlib
 import logging
 import re
 from dataclasses import dataclass
@@ -19,6 +20,7 @@ import numpy as np
 
 from nicer_stream.errors import SourceError
 from nicer_stream.types import Frame
+from sources import SCHEMES
 from sources.base import FrameSource, SourceOptions, read_rgb
 from sources.intrinsics_files import MISSING_HINT, PinholeParams, from_options, read_intrinsics_txt
 from sources.undistort import CameraCalibration, Undistorter, pinhole
@@ -158,12 +160,8 @@ def open(path: str, query: dict[str, str], opts: SourceOptions) -> FrameSource:
     p = existing_dir(path)
     layout = detect_layout(p)
     if layout is not None:
-        # Imported here: those modules import this one for ListedFrameSource.
-        from sources import replica, sevenscenes, tum
-
-        module = {"replica": replica, "tum": tum, "7scenes": sevenscenes}[layout]
         log.info("folder %s looks like a %s sequence", p, layout)
-        return module.open(path, query, opts)
+        return importlib.import_module(SCHEMES[layout]).open(path, query, opts)
     fps = fps_from_query(query, "folder")
     images = sorted((f for f in p.iterdir() if f.suffix.lower() in IMAGE_SUFFIXES), key=lambda f: natural_key(f.name))
     if not images:

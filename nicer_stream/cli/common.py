@@ -9,7 +9,8 @@ from nicer_stream.errors import UserError
 
 
 def user_errors(fn):
-    """Turn UserError/FileNotFoundError into a one-line message and exit code 2."""
+    """Turn UserError and any OSError a user can cause (a missing file, a file where a folder should
+    be, no permission, a full disk) into a one-line message and exit code 2."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
@@ -21,8 +22,17 @@ def user_errors(fn):
         except FileNotFoundError as e:
             typer.echo(f"error: file not found: {e.filename or e}", err=True)
             raise typer.Exit(2)
+        except OSError as e:
+            typer.echo(f"error: {os_error(e)}", err=True)
+            raise typer.Exit(2)
 
     return wrapper
+
+
+def os_error(e: OSError) -> str:
+    """'File exists: runs/x' (the system's reason and the path), whatever the OSError."""
+    where = " -> ".join(str(f) for f in (e.filename, e.filename2) if f is not None)
+    return f"{e.strerror or type(e).__name__}: {where}" if where else str(e) or type(e).__name__
 
 
 def parse_intrinsics(text: str | None) -> tuple[float, float, float, float] | None:

@@ -68,4 +68,4 @@ def priors(
         )
     if writer is None:
         raise UserError(f"source {source} gave no frames: check --start/--max-frames and the path")
-    typer.echo(f"wrote prior cache {out} (read it with --provider cache:{out} --flow cache:{out})")
+    typer.echo(f"wrote prior cache {out} (read it with --priors cache:{out} --flow cache:{out})")

@@ -26,13 +26,6 @@ class Sim3:
         """(N, 3) points in the estimate world -> (N, 3) in the GT world."""
         return self.scale * np.asarray(p, dtype=np.float64) @ self.R.T + self.t
 
-    def apply_poses(self, T: np.ndarray) -> np.ndarray:
-        """(N, 4, 4) T_world_cam of the estimate -> aligned poses (rotation R @ R_i, centre scaled)."""
-        out = np.array(T, dtype=np.float64, copy=True)
-        out[:, :3, :3] = self.R @ out[:, :3, :3]
-        out[:, :3, 3] = self.apply_points(out[:, :3, 3])
-        return out
-
 
 def umeyama(src: np.ndarray, dst: np.ndarray, with_scale: bool = True) -> Sim3:
     """Least-squares Sim(3) (or SE(3) if not `with_scale`) with dst ~ s R src + t.

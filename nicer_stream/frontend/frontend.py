@@ -14,9 +14,9 @@ from nicer_stream.frontend.klt import KltTracks
 from nicer_stream.grey import to_grey_u8
 from nicer_stream.frontend.sift import SiftTracks
 from nicer_stream.frontend.schur_ba import bundle_adjust_schur
-from nicer_stream.frontend.triangulate import project, triangulate
-from nicer_stream.slam.two_view import essential_pose
-from nicer_stream.tracking.flow_init import pnp_pose
+from nicer_stream.frontend.triangulate import triangulate
+from nicer_stream.geometry.camera import project_world as project
+from nicer_stream.geometry.pose_estimation import essential_pose, pnp_pose
 from nicer_stream.types import Intrinsics
 
 

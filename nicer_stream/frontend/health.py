@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from nicer_stream.frontend.triangulate import project
+from nicer_stream.geometry.camera import project_world as project
 from nicer_stream.types import Intrinsics
 
 KINDS = ("lost", "reprojection", "frozen", "scale")

@@ -1,7 +1,7 @@
 """Bundle adjustment by Levenberg-Marquardt on the Schur complement (pure numpy).
 
-The same problem as `local_ba.bundle_adjust` (which hands it to scipy's least squares and
-stays as the reference): poses and points from pixel observations under a Huber loss, the
+The same problem as the scipy least-squares reference its test compares it with
+(`tests/nicer_stream/frontend/local_ba_reference.py`): poses and points from pixel observations under a Huber loss, the
 first `n_fixed` poses held. Each point couples only to the cameras that see it, so its 3x3
 block is eliminated first and the step solves a (6F, 6F) system for the F free cameras. On a
 15-camera window with 23k observations it converged in 0.8-1.1 s where scipy's sparse trust
@@ -14,22 +14,13 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from nicer_stream.geometry import se3
 from nicer_stream.types import Intrinsics
 
 
 def _skew(p: np.ndarray) -> np.ndarray:
-    """(M, 3) -> (M, 3, 3) cross-product matrices [p]x."""
-    S = np.zeros((len(p), 3, 3))
-    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -p[:, 2], p[:, 1], -p[:, 0]
-    S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = p[:, 2], -p[:, 1], p[:, 0]
-    return S
-
-
-def so3_exp(w: np.ndarray) -> np.ndarray:
-    """(N, 3) rotation vectors -> (N, 3, 3) rotation matrices (Rodrigues)."""
-    th = np.linalg.norm(w, axis=1)[:, None, None]
-    K = _skew(w / np.maximum(th[:, :, 0], 1e-12))
-    return np.eye(3) + np.sin(th) * K + (1 - np.cos(th)) * (K @ K)
+    """(M, 3) -> (M, 3, 3) cross-product matrices [p]x (numpy view of `geometry.se3.skew`)."""
+    return se3.skew(torch.from_numpy(p)).numpy()
 
 
 def reprojection(R, t, X, cam, pt, uv, intr):
@@ -68,7 +59,7 @@ def bundle_adjust_schur(poses: list[np.ndarray], n_fixed: int, points: np.ndarra
     (P, 3) from observations: camera ids `cam` (M,), point ids `pt` (M,), pixels `uv` (M, 2);
     one observation per (camera, point). Stops after `max_iters` iterations or when the cost
     falls by less than `tol` relatively. Returns (poses, points, RMS reprojection error in
-    pixels over the observations within 3 `huber_px`), as `local_ba.bundle_adjust`."""
+    pixels over the observations within 3 `huber_px`), as the reference."""
     cw = np.stack([np.linalg.inv(T) for T in poses])
     R, t, X = cw[:, :3, :3].copy(), cw[:, :3, 3].copy(), points.astype(np.float64).copy()
     n_cam, n_pts, n_free = len(poses), len(points), len(poses) - n_fixed
@@ -120,7 +111,7 @@ def bundle_adjust_schur(poses: list[np.ndarray], n_fixed: int, points: np.ndarra
             d = dc.reshape(n_free, 6)
             Rn, tn = R.copy(), t.copy()
             if n_free:
-                E = so3_exp(d[:, :3])
+                E = se3.so3_exp_np(d[:, :3])
                 Rn[n_fixed:] = E @ R[n_fixed:]
                 tn[n_fixed:] = np.einsum("nij,nj->ni", E, t[n_fixed:]) + d[:, 3:]
             Xn = X + dX

@@ -3,17 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from nicer_stream.geometry.camera import project_world
 from nicer_stream.types import Intrinsics
-
-
-def project(T_world_cam: np.ndarray, X: np.ndarray, intr: Intrinsics) -> tuple[np.ndarray, np.ndarray]:
-    """World points (N, 3) -> (pixels (N, 2), z-depth (N,)) in the camera at `T_world_cam`."""
-    T_cw = np.linalg.inv(T_world_cam)
-    p = X @ T_cw[:3, :3].T + T_cw[:3, 3]
-    z = p[:, 2]
-    zs = np.where(np.abs(z) < 1e-9, 1e-9, z)
-    uv = np.stack([intr.fx * p[:, 0] / zs + intr.cx, intr.fy * p[:, 1] / zs + intr.cy], -1)
-    return uv, z
 
 
 def triangulate(T_a: np.ndarray, T_b: np.ndarray, uv_a: np.ndarray, uv_b: np.ndarray, intr: Intrinsics,
@@ -36,7 +27,7 @@ def triangulate(T_a: np.ndarray, T_b: np.ndarray, uv_a: np.ndarray, uv_b: np.nda
     X = Xh[:, :3] / w[:, None]
     ok = np.ones(n, bool)
     for T, uv in ((T_a, uv_a), (T_b, uv_b)):
-        pr, z = project(T, X, intr)
+        pr, z = project_world(T, X, intr)
         ok &= (z > 0) & (np.linalg.norm(pr - uv, axis=1) < max_reproj_px)
     ra, rb = X - T_a[:3, 3], X - T_b[:3, 3]
     cos = (ra * rb).sum(1) / np.maximum(np.linalg.norm(ra, axis=1) * np.linalg.norm(rb, axis=1), 1e-12)

@@ -1,4 +1,4 @@
-"""Pinhole camera maths (pure torch). OpenCV axes: x right, y down, z forward.
+"""Pinhole camera maths (torch; `project_world` is its numpy counterpart for world points). OpenCV axes: x right, y down, z forward.
 
 Integer pixel coordinates are pixel centres. `depth` is z-depth along the
 camera's optical axis; `ray_dist` is the distance along a (unit) ray. For a
@@ -6,6 +6,7 @@ unit ray direction d in the camera frame, depth = ray_dist * d_z.
 """
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from nicer_stream.types import Intrinsics
@@ -50,6 +51,17 @@ def project(p_cam: torch.Tensor, intr: Intrinsics):
     u = intr.fx * p_cam[:, 0] / zs + intr.cx
     v = intr.fy * p_cam[:, 1] / zs + intr.cy
     return torch.stack([u, v], dim=-1), z
+
+
+def project_world(T_world_cam: np.ndarray, X: np.ndarray, intr: Intrinsics) -> tuple[np.ndarray, np.ndarray]:
+    """numpy: world points (N, 3) -> (pixels (N, 2), z-depth (N,)) in the camera at `T_world_cam`
+    (float64; the sparse, non-differentiable side: the frontend, stereo and keyframe checks)."""
+    T_cw = np.linalg.inv(T_world_cam)
+    p = X @ T_cw[:3, :3].T + T_cw[:3, 3]
+    z = p[:, 2]
+    zs = np.where(np.abs(z) < 1e-9, 1e-9, z)
+    uv = np.stack([intr.fx * p[:, 0] / zs + intr.cx, intr.fy * p[:, 1] / zs + intr.cy], -1)
+    return uv, z
 
 
 def unproject(uv: torch.Tensor, depth: torch.Tensor, intr: Intrinsics) -> torch.Tensor:

@@ -5,7 +5,7 @@ whose frames share their size and intrinsics and whose rays are split evenly
 (`ray_sampling.batch_rays`): ~100 tensor ops per iteration instead of ~40 per frame and ~70
 per warped partner. At the demo's 9-frame windows the reference's ~18k small ops per
 iteration (forward and backward, each a few microseconds of dispatch on one thread) were
-a fifth of a `fast` mapping iteration (docs/performance.md, stop 37).
+a fifth of a `fast` mapping iteration (docs/performance.md).
 """
 from __future__ import annotations
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from nicer_stream.priors.normals_from_depth import normals_from_depth
+from nicer_stream.geometry.depth_normals import normals_from_depth
 from nicer_stream.types import Intrinsics
 
 _BLUR_PX = 2.0  # prior depth noise makes per-pixel normals useless: smooth, then subsample

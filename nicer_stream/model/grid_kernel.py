@@ -13,7 +13,7 @@ from nicer_stream.model.gather import gradient_target
 
 # -march=native: this CPU's vector width (AVX2 here) for the corner weights and the channel loops,
 # a mapping iteration ~8% faster; -ffp-contract=off: no fused multiply-adds, so the results are
-# bit-identical to the plain -O3 build on every CPU (docs/performance.md, stop 38).
+# bit-identical to the plain -O3 build on every CPU (docs/decisions.md).
 _KERNEL = CppKernel("nicer_stream_grid_interp", "grid_interp.cpp",
                     ["-O3", "-fopenmp", "-march=native", "-ffp-contract=off"])
 _load = _KERNEL.module

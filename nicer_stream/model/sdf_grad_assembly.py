@@ -13,7 +13,7 @@ applied to g (the same for every part), and dL/d gamma(x) at the sin and cos col
 
 `kernels/encoding.cpp` computes both in one pass each over the points; in tensor ops
 (`assemble_reference`, the path on a GPU or without the kernel) the backward alone took four
-(N, 3, F) temporaries and ~8 ms of a `fast` mapping iteration's 110 (`runs/s52/assembly_bench.py`).
+(N, 3, F) temporaries and ~8 ms of a `fast` mapping iteration's 110.
 """
 from __future__ import annotations
 

@@ -94,7 +94,7 @@ def _check_size(meta: CacheMeta, frame: Frame, root: Path) -> None:
     if (frame.width, frame.height) != (meta.width, meta.height):
         raise UserError(
             f"prior cache {root} holds {meta.width}x{meta.height} images but frame {frame.index} is "
-            f"{frame.width}x{frame.height}: use the --max-side/--scale the cache was written with"
+            f"{frame.width}x{frame.height}: use the --max-side the cache was written with"
         )
 
 

@@ -21,7 +21,7 @@ import torch.nn.functional as F
 
 from nicer_stream.errors import UserError
 from nicer_stream.priors.base import DepthNormal, DepthNormalProvider
-from nicer_stream.priors.normals_from_depth import normals_from_depth
+from nicer_stream.geometry.depth_normals import normals_from_depth
 from nicer_stream.types import Frame
 
 DEFAULT_MODEL = "depth-anything/Depth-Anything-V2-Small-hf"

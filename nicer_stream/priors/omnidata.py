@@ -27,7 +27,7 @@ import torch.nn.functional as F
 
 from nicer_stream.errors import UserError
 from nicer_stream.priors.base import DepthNormal, DepthNormalProvider
-from nicer_stream.priors.normals_from_depth import orient_towards_camera
+from nicer_stream.geometry.depth_normals import orient_towards_camera
 from nicer_stream.types import Frame
 
 DEFAULT_REPO = "alexsax/omnidata_tools"

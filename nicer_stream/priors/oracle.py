@@ -35,12 +35,12 @@ from nicer_stream.errors import UserError
 from nicer_stream.geometry.camera import in_image, pixel_grid, project, unproject
 from nicer_stream.geometry.se3 import invert, transform_points
 from nicer_stream.priors.base import DepthNormal, DepthNormalProvider, FlowProvider
-from nicer_stream.priors.normals_from_depth import fill_nearest, normals_from_depth, orient_towards_camera
+from nicer_stream.geometry.depth_normals import fill_nearest, normals_from_depth, orient_towards_camera
 from nicer_stream.types import FlowPrior, Frame, Intrinsics
 
 _NEEDS_GT = (
     "the 'oracle' prior needs ground truth {what}, and frame {index} has none: "
-    "use a source with GT (replica:, synthetic:, ...) or another provider (e.g. --provider none / --flow dis)"
+    "use a source with GT (replica:, synthetic:, ...) or another prior (e.g. depth none, flow dis)"
 )
 
 

@@ -246,7 +246,7 @@ def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tup
 
 class StereoDepthNormal(DepthNormalProvider):
     """`--priors stereo`: nothing per frame; the SLAM computes each keyframe's depth and normals
-    by plane sweep once it has posed neighbours (`slam/stereo_priors.py`)."""
+    by plane sweep once it has posed neighbours (`priors/keyframe_stereo.py`)."""
 
     name = "stereo"
     description = "stereo (plane-sweep depth from keyframes and the SLAM's own poses; no ground truth, no weights)"

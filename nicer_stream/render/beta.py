@@ -22,8 +22,6 @@ class BetaField(nn.Module):
     def __init__(self, cfg: RenderConfig) -> None:
         super().__init__()
         self.cfg = cfg
-        if cfg.beta_mode not in ("adaptive", "global", "fixed"):
-            raise ValueError(f"beta_mode must be adaptive, global or fixed, got {cfg.beta_mode!r}")
         n = cfg.beta_voxels
         self.register_buffer("counts", torch.zeros(n * n * n, dtype=torch.float64))
         self.log_beta = nn.Parameter(torch.tensor(float(cfg.beta_fixed)).log(), requires_grad=cfg.beta_mode == "global")

@@ -11,7 +11,7 @@ marks 20% of the samples; the exact weights of those it marks sum to at most 7e-
 
 Tracking uses it (`[tracking] min_transmittance`). Mapping does not by default: there the
 samples behind surfaces also carry the Eikonal term, and without them the Replica map lost
-depth accuracy on three seeds (docs/performance.md, stop 40).
+depth accuracy on three seeds (docs/decisions.md).
 """
 from __future__ import annotations
 

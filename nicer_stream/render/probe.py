@@ -20,12 +20,8 @@ from nicer_stream.render.volume import render_weights
 # one pass would allocate ~1.3 GB per hidden layer; chunks of this size stay in cache-sized
 # allocations. `fast` (1024 x 32) fits in one chunk.
 PROBE_CHUNK = 1 << 17
-# Probes per ray evaluated between two checks of the optical depth. Per iteration at the paper's
-# sizes (640 probes; runs/s32/probe_ab.py, one pass then the early stop, one process, without the
-# run's `retain_freed_memory`, which makes both ~4x cheaper: docs/performance.md, stop 32): runs of 64
-# mapping 20.6 -> 18.3 s, tracking 1.13 -> 1.03 s; runs of 80 (another invocation) 19.3 -> 17.9 s,
-# 1.23 -> 0.99 s. At `fast` sizes (32 probes, runs of 8) the four smaller passes cost more than
-# they skipped: tracking 0.040 -> 0.048 s.
+# Probes per ray evaluated between two checks of the optical depth: at the paper's 640 probes
+# the early stop saves ~10% per iteration; at `fast`'s 32 one pass is cheaper (docs/decisions.md).
 SEGMENT = 64
 
 
@@ -40,14 +36,6 @@ def composite_deltas(t: torch.Tensor, far: torch.Tensor) -> torch.Tensor:
     """(R, S) sorted sample distances -> interval lengths; the last runs to `far` (R,)."""
     last = (far[:, None] - t[:, -1:]).clamp_min(1e-4)
     return torch.cat([t[:, 1:] - t[:, :-1], last], dim=-1)
-
-
-@torch.no_grad()
-def probe_weights(model: SceneModel, beta: BetaField, x: torch.Tensor, deltas: torch.Tensor, use_fine: bool,
-                  stop_tau: float | None = None, segment: int = SEGMENT) -> torch.Tensor:
-    """Weights (R, P) of the probes x (R, P, 3) (normalised, sorted along each ray) with
-    interval lengths `deltas` (R, P): `probe_pass`'s weights."""
-    return probe_pass(model, beta, x, deltas, use_fine, stop_tau, segment)[0]
 
 
 # The SDF `probe_pass` reports at probes it skipped: behind the point where their ray's light was

@@ -27,7 +27,7 @@ from nicer_stream.runtime.scene_export import save_render, scene_mesh
 from nicer_stream.runtime.stage_timer import StageTimer
 from nicer_stream.render.renderer import render_image
 from nicer_stream.runtime.source_setup import intrinsics_dict, open_configured
-from nicer_stream.slam.stereo_priors import StereoPriors, fusion_params
+from nicer_stream.priors.keyframe_stereo import StereoPriors, fusion_params
 from sources.base import SourceOptions
 
 log = logging.getLogger(__name__)

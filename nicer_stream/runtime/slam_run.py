@@ -99,7 +99,7 @@ def renders_on_sink_worker(device: str, slam_threads: int) -> bool:
     core the worker's one render thread and the SLAM thread's two made three busy threads on
     two cores, and the SLAM thread's parallel regions waited for whichever was descheduled:
     `make demo` 205 s without a sink, 228-237 s with one, for ~20 s of renders
-    (docs/performance.md, stop 36)."""
+    (docs/decisions.md)."""
     return device.startswith("cuda") or available_cores() > slam_threads
 
 

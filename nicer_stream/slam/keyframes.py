@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nicer_stream.frontend.health import pose_step
-from nicer_stream.frontend.triangulate import project
+from nicer_stream.geometry.camera import project_world as project
 from nicer_stream.types import Intrinsics
 
 

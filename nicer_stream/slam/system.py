@@ -35,7 +35,7 @@ from nicer_stream.slam.events import Event, FrameTracked, KeyframeAdded, MapUpda
 from nicer_stream.slam.map_jobs import InlineMapping, MapJob, MappingExecutor, MapResult, job_frames, take_snapshot
 from nicer_stream.slam.motion import frontend_disagreement, predict_pose, tracking_failure
 from nicer_stream.slam.pose_corrections import spread_corrections
-from nicer_stream.slam.stereo_priors import StereoPriors, fusion_params
+from nicer_stream.priors.keyframe_stereo import StereoPriors, fusion_params
 from nicer_stream.slam.keyframes import KeyframeRule, KeyframeSelector
 from nicer_stream.slam.tracking_policy import DisagreementStreaks, judge_disagreement
 from nicer_stream.slam.two_view import TwoView, two_view_from_tracks, two_view_init

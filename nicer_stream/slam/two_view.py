@@ -19,12 +19,11 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 import torch
 
-from nicer_stream.frontend.triangulate import project
-from nicer_stream.geometry.camera import camera_dirs, in_image, pixel_grid
+from nicer_stream.geometry.camera import in_image, pixel_grid, project_world
+from nicer_stream.geometry.pose_estimation import essential_pose
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.prior_alignment import align_frame_prior, robust_affine_fit
 from nicer_stream.types import Intrinsics
@@ -36,7 +35,7 @@ log = logging.getLogger(__name__)
 # pixels below 0.1 m and the whole run broke (ATE 38 cm); correct fits put none there.
 MAX_BEHIND = 0.01
 # The two-view fit's depth of the first frame may differ from its normal prior's start by at most
-# this fraction of the median. Measured on frames 0/10 (`runs/s35/agree.py`, docs/priors.md): with
+# this fraction of the median. Measured on frames 0/10 (docs/priors.md): with
 # GT flow 1.0-1.9% on Replica and the synthetic room (the two-view shift then 0.1-10% of the median
 # off, the normals' 1-5%); with DIS flow 5.9-80% (the two-view's 12-93% off, the normals' 1-5%).
 MAX_DISAGREEMENT = 0.04
@@ -69,28 +68,6 @@ def relative_pose(first: MapFrame, second: MapFrame, max_points: int = 5000, thr
     uv1 = uv0 + flow.reshape(-1, 2).cpu().numpy()[ids].astype(np.float64)
     rel = essential_pose(uv0, uv1, first.intr, thresh_px, 100)
     return None if rel is None else (rel[0], rel[1])
-
-
-def essential_pose(uv0: np.ndarray, uv1: np.ndarray, intr: Intrinsics, thresh_px: float,
-                   min_inliers: int) -> tuple[np.ndarray, int, np.ndarray] | None:
-    """T_world_cam (4, 4) float64 of a second view with the first at the identity and a unit
-    baseline, from pixel matches uv0 -> uv1 (N, 2) by the essential matrix (RANSAC at
-    `thresh_px`); with the inlier count and the (N,) bool inlier mask. None with fewer than
-    `min_inliers` inliers or when the matches do not move (no essential matrix exists)."""
-    n0 = camera_dirs(torch.from_numpy(uv0), intr)[:, :2].numpy()  # normalised image coordinates
-    n1 = camera_dirs(torch.from_numpy(uv1), intr)[:, :2].numpy()
-    try:
-        E, mask = cv2.findEssentialMat(n0, n1, np.eye(3), cv2.RANSAC, 0.999, thresh_px / intr.fx)
-    except cv2.error:  # identical points (a camera at rest): OpenCV's 5-point solver asserts
-        return None
-    if E is None or E.shape != (3, 3):
-        return None
-    n_in, R, t, mask = cv2.recoverPose(E, n0, n1, np.eye(3), mask=mask)
-    if n_in < min_inliers:
-        return None
-    T_second_first = np.eye(4)
-    T_second_first[:3, :3], T_second_first[:3, 3] = R, t[:, 0]
-    return np.linalg.inv(T_second_first), int(n_in), mask[:, 0] > 0
 
 
 def _known(prior: torch.Tensor) -> torch.Tensor:
@@ -163,7 +140,7 @@ def prior_fit_to_points(frame: MapFrame, T_world_cam: np.ndarray, points: np.nda
     more than `max_behind` of the prior's pixels at non-positive depth."""
     if frame.depth_prior is None or len(points) == 0:
         return None
-    uv, z = project(T_world_cam, np.asarray(points, np.float64), frame.intr)
+    uv, z = project_world(T_world_cam, np.asarray(points, np.float64), frame.intr)
     seen = (z > 0) & in_image(uv, frame.intr)
     u, v = np.round(uv[seen]).astype(int).clip(0, [frame.intr.width - 1, frame.intr.height - 1]).T
     prior = frame.depth_prior.detach().double().cpu().numpy()[v, u]

@@ -9,39 +9,14 @@ trajectory shorter than the map (Replica clip: translations ~10% short).
 """
 from __future__ import annotations
 
-import cv2
 import numpy as np
 import torch
 
 from nicer_stream.config import RenderConfig
+from nicer_stream.geometry.pose_estimation import pnp_pose
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.render.renderer import render_rays, rays_for_pixels
 from nicer_stream.types import Intrinsics
-
-
-def pnp_pose(points_world: np.ndarray, uv: np.ndarray, intr: Intrinsics, T_guess: np.ndarray,
-             reproj_px: float = 2.0, min_inliers: int = 30) -> tuple[np.ndarray, int] | None:
-    """T_world_cam (4, 4) float64 of a camera seeing `points_world` (N, 3) at pixels `uv`
-    (N, 2), by RANSAC PnP started at `T_guess` and refined on the inliers; with its inlier
-    count. None with fewer than `min_inliers` inliers."""
-    if len(points_world) < min_inliers:
-        return None
-    K = intr.matrix()
-    T_cw = np.linalg.inv(T_guess)
-    rvec, _ = cv2.Rodrigues(T_cw[:3, :3])
-    tvec = T_cw[:3, 3].copy()
-    X, x = points_world.astype(np.float64), uv.astype(np.float64)
-    ok, rvec, tvec, inl = cv2.solvePnPRansac(X, x, K, None, rvec, tvec.reshape(3, 1), useExtrinsicGuess=True,
-                                             iterationsCount=200, reprojectionError=reproj_px, confidence=0.999,
-                                             flags=cv2.SOLVEPNP_ITERATIVE)
-    if not ok or inl is None or len(inl) < min_inliers:
-        return None
-    inl = inl[:, 0]
-    rvec, tvec = cv2.solvePnPRefineLM(X[inl], x[inl], K, None, rvec, tvec)
-    T = np.eye(4)
-    T[:3, :3] = cv2.Rodrigues(rvec)[0]
-    T[:3, 3] = tvec[:, 0]
-    return np.linalg.inv(T), len(inl)
 
 
 @torch.no_grad()

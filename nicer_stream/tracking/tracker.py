@@ -18,7 +18,6 @@ import torch
 
 from nicer_stream.config import RenderConfig, TrackingConfig
 from nicer_stream.denormals import flush_denormals
-from nicer_stream.errors import UserError
 from nicer_stream.geometry.se3 import invert, se3_exp, se3_log
 from nicer_stream.losses import rgb_l1
 from nicer_stream.losses.brightness import apply_brightness, fit_brightness
@@ -55,12 +54,6 @@ class Tracker:
     """Reads the scene (never writes it): gradients flow to the pose twist only."""
 
     def __init__(self, model: SceneModel, beta: BetaField, cfg: TrackingConfig, render: RenderConfig, seed: int = 0) -> None:
-        if cfg.keep not in ("best", "last"):
-            raise UserError(f"tracking.keep must be 'best' or 'last', got {cfg.keep!r}")
-        if cfg.optimizer not in ("adam", "gauss_newton"):
-            raise UserError(f"tracking.optimizer must be 'adam' or 'gauss_newton', got {cfg.optimizer!r}")
-        if cfg.residual not in ("rgb", "grey"):
-            raise UserError(f"tracking.residual must be 'rgb' or 'grey', got {cfg.residual!r}")
         self.model, self.beta, self.cfg = model, beta, cfg
         # Tracking may use fewer samples: the surface is already known.
         # Its own transmittance cut, and no band behind surfaces: tracking has no Eikonal term.

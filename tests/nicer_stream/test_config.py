@@ -113,3 +113,31 @@ def test_every_field_has_a_docstring():
                 checked += 1
         assert not names, f"{node.name}: fields not found in source {names}"
     assert checked > 50
+
+
+@pytest.mark.parametrize("text, message", [
+    ('seed = "zero"', "config file {path}: seed must be an integer, got 'zero'"),
+    ("[tracking]\niters = -5", "config file {path}: tracking.iters must be an integer >= 0, got -5"),
+    ('[tracking]\noptimizer = "newton"', "config file {path}: tracking.optimizer must be one of 'adam', 'gauss_newton', got 'newton'"),
+    ("[mapping]\nba_start = 1.5", "config file {path}: mapping.ba_start must be a number in [0, 1], got 1.5"),
+    ("[mapping]\nbatched_terms = 1", "config file {path}: mapping.batched_terms must be true or false, got 1"),
+    ("[loss.weights]\ndepth = -1.0", "config file {path}: loss.weights.depth must be a number >= 0, got -1.0"),
+    ("[bound]\ncentre = [1, 2]", "config file {path}: bound.centre must be 3 numbers, got (1, 2)"),
+    ("max_side = 0", "config file {path}: max_side must be an integer > 0, got 0"),
+])
+def test_a_wrong_value_in_a_file_is_one_line_naming_its_key(tmp_path: Path, text: str, message: str):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(UserError) as e:
+        C.load("fast", path)
+    assert str(e.value) == message.format(path=path)
+
+
+def test_sections_check_their_modes_and_ranges_when_built():
+    with pytest.raises(UserError, match="model.sphere_centre must be one of 'bound', 'camera', 'auto'"):
+        C.ModelConfig(sphere_centre="centre")
+    with pytest.raises(UserError, match=r"tracking.lr must be a number > 0"):
+        dataclasses.replace(C.fast().tracking, lr=0.0)
+    assert dataclasses.replace(C.fast().tracking, lr=1).lr == 1  # an integer where a number is asked for is a number
+    assert C.load("fast") == C.fast()  # both presets pass their own checks
+    assert C.load("paper") == C.paper()

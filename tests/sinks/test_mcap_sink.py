@@ -12,7 +12,7 @@ from nicer_stream.types import Intrinsics
 from sinks import MultiSink, make_sink
 from sinks.base import Sink
 from sinks.mcap_sink import McapSink
-from sinks.readback import read_mcap
+from tests.sinks.mcap_readback import read_mcap
 
 INTR = Intrinsics(fx=20.0, fy=22.0, cx=7.5, cy=5.25, width=16, height=12)
 T0_NS = 1_700_000_000_123_456_789

@@ -163,8 +163,8 @@ inline void cell_grad_x(const Cell<scalar_t>& c, const scalar_t* T, const scalar
 // cells). Threads own whole levels (interleaved, so that the large fine levels are shared out),
 // or, with fewer levels than threads, the rows with row mod T == t (T a power of two).
 // Deterministic for a given thread count, without atomics: every row is updated by one thread.
-// (Until stop 28 this was a second pass over a buffer of all (point, level, corner) rows and
-// contributions that a first pass had written: 25 MB per call for the fine grid.)
+// (One pass: a buffer of all (point, level, corner) contributions would be 25 MB per call for
+// the fine grid.)
 template <typename scalar_t, int CC>
 void scatter_table(const scalar_t* X, const scalar_t* GO, const scalar_t* GJ, scalar_t* TG,
                    const std::vector<Level>& lv, int64_t N, int64_t C_rt) {

@@ -24,6 +24,7 @@ def test_priors_writes_a_cache_that_reads_back(tmp_path, replica_dir):
          "--flow-gap", "2", "--out", str(out)],
     )
     assert res.exit_code == 0, res.output
+    assert f"read it with --priors cache:{out} --flow cache:{out}" in res.output  # run's and map's flags
     assert sum(line.startswith("frame ") for line in res.output.splitlines()) == 3  # one progress line per frame
     meta = json.loads((out / "meta.json").read_text())
     assert (meta["depth_normal_provider"], meta["flow_provider"]) == ("oracle", "dis")

@@ -19,6 +19,7 @@ from nicer_stream.io.trajectory import write_tum
 from nicer_stream.types import Frame, Intrinsics
 from sources import open_source
 from sources.base import FrameSource, SourceOptions
+from tests.nicer_stream.eval.sim3_poses import apply_poses
 
 SIDE = 160  # renders and evaluation at this size keep the tests fast
 
@@ -110,7 +111,7 @@ def test_sim3_world_renders_and_mesh(tmp_path, replica_dir, frames10):
     t, gt = gt_traj(frames10)
     k = 2.0  # the estimate's world is rotated, shifted and twice as large as the GT world
     G = Sim3(so3_exp(torch.tensor([0.3, -1.0, 0.5], dtype=torch.float64)).numpy(), np.array([1.0, -2.0, 0.5]), k)
-    write_tum(tmp_path / od.TRAJECTORY_FILE, t, G.apply_poses(gt))
+    write_tum(tmp_path / od.TRAJECTORY_FILE, t, apply_poses(G, gt))
     for f in frames10[::4]:
         write_render(tmp_path, f, depth_scale=1 / k)
     m = depth_mesh(frames10[0])

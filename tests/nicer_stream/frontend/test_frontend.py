@@ -177,7 +177,7 @@ def test_holding_the_scale_keeps_every_projection_and_the_first_baseline():
     """`hold_scale` rescales an adjusted window about its first camera so its first two cameras
     are as far apart as before the adjustment; no camera sees any point move."""
     from nicer_stream.frontend.frontend import hold_scale
-    from nicer_stream.frontend.triangulate import project
+    from nicer_stream.geometry.camera import project_world as project
     from nicer_stream.geometry.se3 import se3_exp
     from nicer_stream.types import Intrinsics
 

@@ -4,7 +4,7 @@ reported, within a few frames, and only once per episode."""
 import numpy as np
 
 from nicer_stream.frontend.health import FrontendHealth, HealthLimits, median_track_motion, reprojection_error
-from nicer_stream.frontend.triangulate import project
+from nicer_stream.geometry.camera import project_world as project
 from nicer_stream.types import Intrinsics
 
 INTR = Intrinsics(300.0, 300.0, 160.0, 120.0, 320, 240)

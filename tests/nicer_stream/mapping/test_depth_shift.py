@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from nicer_stream.mapping.depth_shift import normal_disagreement, shift_from_normals
-from nicer_stream.priors.normals_from_depth import normals_from_depth
+from nicer_stream.geometry.depth_normals import normals_from_depth
 from sources import open_source
 
 

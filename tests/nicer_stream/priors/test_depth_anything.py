@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from nicer_stream.priors.depth_anything import disparity_to_depth
-from nicer_stream.priors.normals_from_depth import view_rays
+from nicer_stream.geometry.depth_normals import view_rays
 from nicer_stream.types import Frame, Intrinsics
 
 

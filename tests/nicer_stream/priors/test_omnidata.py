@@ -6,7 +6,7 @@ import textwrap
 import numpy as np
 
 from nicer_stream.priors import make_depth_normal_provider
-from nicer_stream.priors.normals_from_depth import view_rays
+from nicer_stream.geometry.depth_normals import view_rays
 from nicer_stream.priors.omnidata import omnidata_normals_to_opencv
 from nicer_stream.types import Frame, Intrinsics
 

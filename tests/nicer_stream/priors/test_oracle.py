@@ -8,7 +8,7 @@ import pytest
 
 from nicer_stream.errors import UserError
 from nicer_stream.priors import make_depth_normal_provider
-from nicer_stream.priors.normals_from_depth import normals_from_depth, view_rays
+from nicer_stream.geometry.depth_normals import normals_from_depth, view_rays
 from nicer_stream.priors.oracle import (
     OracleCorruption,
     OracleDepthNormal,

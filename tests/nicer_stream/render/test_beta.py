@@ -6,6 +6,7 @@ import torch
 
 from nicer_stream.config import RenderConfig
 from nicer_stream.render.beta import BetaField, adaptive_beta
+from nicer_stream.errors import UserError
 
 C0, C1, C2 = 1.208e-2, 6.26471e-6, 2.3e-3  # paper Sec. 3.4
 
@@ -71,5 +72,5 @@ def test_global_mode_is_learnable():
 
 
 def test_unknown_mode_rejected():
-    with pytest.raises(ValueError, match="beta_mode"):
+    with pytest.raises(UserError, match="render.beta_mode must be one of .adaptive., .global., .fixed., got .local."):
         BetaField(RenderConfig(beta_mode="local"))

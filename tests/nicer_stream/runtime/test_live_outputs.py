@@ -13,7 +13,8 @@ from nicer_stream.config import load
 from nicer_stream.io import output_dir as od
 from nicer_stream.io.trajectory import read_tum
 from nicer_stream.runtime.slam_run import RunRequest, run_slam
-from sinks.readback import read_mcap, read_rrd_columns
+from sinks.readback import read_rrd_columns
+from tests.sinks.mcap_readback import read_mcap
 
 FRAMES = 14
 

@@ -14,6 +14,7 @@ from nicer_stream.slam.motion import frontend_disagreement
 from nicer_stream.slam.system import SlamSystem
 from nicer_stream.config import FrontendConfig
 from nicer_stream.tracking.tracker import Tracker
+from nicer_stream.errors import UserError
 from sources import open_source
 from sources.base import SourceOptions
 
@@ -151,7 +152,7 @@ def test_refine_keyframes_tracks_only_keyframes_and_keeps_frontend_poses(cfg, mo
 
 
 def test_refine_rejects_unknown_values(cfg):
-    with pytest.raises(Exception, match="tracking.refine must be all or keyframes"):
+    with pytest.raises(UserError, match="tracking.refine must be one of .all., .keyframes., got .some."):
         SlamSystem(replace(cfg, tracking=replace(cfg.tracking, refine="some")))
 
 
@@ -229,7 +230,7 @@ def test_rejected_keyframe_frontend_keeps_the_slot_at_the_frontend_pose(cfg, mon
 
 
 def test_rejected_keyframe_rejects_unknown_values(cfg):
-    with pytest.raises(Exception, match="tracking.rejected_keyframe must be pass or frontend"):
+    with pytest.raises(UserError, match="tracking.rejected_keyframe must be one of .pass., .frontend., got .keep."):
         SlamSystem(replace(cfg, tracking=replace(cfg.tracking, rejected_keyframe="keep")))
 
 

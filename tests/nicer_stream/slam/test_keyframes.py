@@ -3,7 +3,7 @@ motion, many for fast motion, some for a pure rotation; and the same path sample
 at 10 Hz gives keyframes at nearly the same times. The landmarks are a random cloud of points."""
 import numpy as np
 
-from nicer_stream.frontend.triangulate import project
+from nicer_stream.geometry.camera import project_world as project
 from nicer_stream.slam.keyframes import KeyframeRule, KeyframeSelector, view_change
 from nicer_stream.types import Intrinsics
 

@@ -6,7 +6,8 @@ from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.priors import PriorEngine
 from nicer_stream.priors.oracle import OracleCorruption, OracleDepthNormal, OracleFlow
 from nicer_stream.runtime.frame_priors import make_engine, map_frame
-from nicer_stream.slam.two_view import behind_fraction, essential_pose, relative_pose, two_view_init
+from nicer_stream.geometry.pose_estimation import essential_pose
+from nicer_stream.slam.two_view import behind_fraction, relative_pose, two_view_init
 from sources import open_source
 from sources.base import SourceOptions
 
@@ -177,7 +178,7 @@ def test_the_start_from_the_frontends_tracks_places_the_second_view_and_both_pri
     degrees of GT (its direction within 1.5), and both priors fitted to the tracks' points."""
     from nicer_stream.config import FrontendConfig
     from nicer_stream.frontend.frontend import ClassicalFrontend
-    from nicer_stream.frontend.triangulate import project
+    from nicer_stream.geometry.camera import project_world as project
     from nicer_stream.geometry.camera import in_image
     from nicer_stream.slam.two_view import two_view_from_tracks
 

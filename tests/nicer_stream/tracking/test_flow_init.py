@@ -5,7 +5,8 @@ import torch
 from nicer_stream.geometry.se3 import se3_exp
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.priors.oracle import OracleFlow
-from nicer_stream.tracking.flow_init import pnp_pose, pose_from_flows
+from nicer_stream.geometry.pose_estimation import pnp_pose
+from nicer_stream.tracking.flow_init import pose_from_flows
 from nicer_stream.types import Intrinsics, Priors
 
 

@@ -1,6 +1,6 @@
 """Sparse local bundle adjustment (scipy least squares, Huber loss) over recent camera poses
-and the landmarks they see: the reference for `schur_ba.bundle_adjust_schur`, which the
-frontend runs (the same problem, converged 7-9x faster in one measurement here). The oldest
+and the landmarks they see: the reference `test_schur_ba.py` checks the frontend's
+`schur_ba.bundle_adjust_schur` against (the same problem, solved 7-9x slower). The oldest
 `n_fixed` poses stay put: they fix the gauge and the scale, which the neural map has already
 committed to."""
 from __future__ import annotations
@@ -9,7 +9,8 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import lil_matrix
 
-from nicer_stream.frontend.schur_ba import inlier_rms, reprojection, so3_exp
+from nicer_stream.frontend.schur_ba import inlier_rms, reprojection
+from nicer_stream.geometry.se3 import so3_exp_np as so3_exp
 from nicer_stream.types import Intrinsics
 
 

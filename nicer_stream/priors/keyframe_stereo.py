@@ -24,15 +24,14 @@ import numpy as np
 import torch
 
 from nicer_stream.config import StereoConfig
-from nicer_stream.frontend.triangulate import project
-from nicer_stream.geometry.camera import in_image
+from nicer_stream.geometry.camera import in_image, project_world
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mesh.visibility import DepthView
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.grey import to_grey_f32
 from nicer_stream.priors.mono_alignment import align_depth, fuse_depth
 from nicer_stream.priors.plane_fill import fill_planar_holes
-from nicer_stream.priors.normals_from_depth import fill_nearest, normals_from_depth
+from nicer_stream.geometry.depth_normals import fill_nearest, normals_from_depth
 from nicer_stream.priors.stereo import local_std, shrink_depth, sweep_depth
 from nicer_stream.types import DetailImage, Intrinsics
 
@@ -59,7 +58,7 @@ def seen_depths(T_world_cam: np.ndarray, points: np.ndarray | None, intr, min_po
     its image; None with fewer than `min_points` of them."""
     if points is None or len(points) < min_points:
         return None
-    uv, z = project(T_world_cam, np.asarray(points, np.float64), intr)
+    uv, z = project_world(T_world_cam, np.asarray(points, np.float64), intr)
     seen = (z > 0) & in_image(uv, intr)
     return z[seen] if seen.sum() >= min_points else None
 

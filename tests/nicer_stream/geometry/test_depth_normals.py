@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from nicer_stream.priors.normals_from_depth import normals_from_depth, orient_towards_camera, view_rays
+from nicer_stream.geometry.depth_normals import normals_from_depth, orient_towards_camera, view_rays
 from nicer_stream.types import Intrinsics
 
 INTR = Intrinsics(fx=60.0, fy=55.0, cx=31.5, cy=23.0, width=64, height=48)

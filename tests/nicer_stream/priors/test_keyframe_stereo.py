@@ -11,7 +11,7 @@ from nicer_stream.model.bound import SceneBound
 from nicer_stream.runtime.slam_run import RunRequest, run_slam
 from nicer_stream.config import StereoConfig
 from nicer_stream.geometry.se3 import se3_exp
-from nicer_stream.slam.stereo_priors import (
+from nicer_stream.priors.keyframe_stereo import (
     StereoPriors, landmark_depth_range, pair_poses, partners_by_baseline, partners_of, stereo_normals,
 )
 from sources import open_source
