@@ -72,26 +72,7 @@ class SlamSystem:
                  progress: Callable[[str], MappingProgress | None] | None = None,
                  stereo: bool = False, should_stop: Callable[[], bool] | None = None,
                  mapping: MappingExecutor | None = None, fuse_mono: bool = False) -> None:
-        if cfg.loss.slam_prior_alignment not in ("lstsq", "map", "flow"):
-            raise UserError(f"loss.slam_prior_alignment must be lstsq, map or flow, got {cfg.loss.slam_prior_alignment!r}")
-        if cfg.tracking.init not in ("previous", "constant_velocity", "flow"):
-            raise UserError(f"tracking.init must be previous, constant_velocity or flow, got {cfg.tracking.init!r}")
-        if cfg.mapping.init not in ("first_frame", "two_view", "auto"):
-            raise UserError(f"mapping.init must be first_frame, two_view or auto, got {cfg.mapping.init!r}")
-        if cfg.tracking.frontend not in ("classical", "none", "auto"):
-            raise UserError(f"tracking.frontend must be classical, none or auto, got {cfg.tracking.frontend!r}")
-        if cfg.mapping.keyframes not in ("stride", "view"):
-            raise UserError(f"mapping.keyframes must be stride or view, got {cfg.mapping.keyframes!r}")
-        if cfg.tracking.refine not in ("all", "keyframes"):
-            raise UserError(f"tracking.refine must be all or keyframes, got {cfg.tracking.refine!r}")
-        if cfg.tracking.rejected_keyframe not in ("pass", "frontend"):
-            raise UserError(f"tracking.rejected_keyframe must be pass or frontend, got {cfg.tracking.rejected_keyframe!r}")
-        if cfg.model.sphere_centre not in ("bound", "camera", "auto"):
-            raise UserError(f"model.sphere_centre must be bound, camera or auto, got {cfg.model.sphere_centre!r}")
-        if cfg.frontend.features not in ("sift", "klt"):
-            raise UserError(f"frontend.features must be sift or klt, got {cfg.frontend.features!r}")
-        if cfg.stereo.scale not in ("fixed", "fit"):
-            raise UserError(f"stereo.scale must be fixed or fit, got {cfg.stereo.scale!r}")
+        # Modes and ranges were checked by the config itself (config.py `__post_init__`).
         self.cfg, self.device = cfg, torch.device(device)
         # `--priors stereo`: keyframe depth/normal priors by plane sweep before each mapping call;
         # `fuse_mono` (a monocular provider with `stereo.mono_fusion`): the sweep's depth with the
