@@ -608,7 +608,7 @@ def fast() -> SlamConfig:
         render=RenderConfig(n_probe=32, n_importance=12, n_uniform=4, beta_count_weight=500.0),
         loss=LossConfig(weights=LossWeights(depth=10.0, flow=0.01, normal_l1=0.2, normal_angular=0.2)),
         mapping=MappingConfig(iters=60, first_iters=200, rays=1024, eikonal_points=256, batch_iters=350,
-                              init="two_view", keyframe_every=5, final_iters=100,
+                              init="two_view", keyframes="view", keyframe_every=5, final_iters=100,
                               final_color_start=0.25, final_lr_end_factor=0.1),
         tracking=TrackingConfig(iters=20, rays=512, lr=3e-3, init="flow", keep="last", min_count=1000.0,
                                 n_probe=32, n_importance=12, n_uniform=0, frontend="classical",
