@@ -158,6 +158,17 @@ class ClassicalFrontend:
             return 0
         return len(np.intersect1d(self.obs[a][0], self.obs[b][0]))
 
+    def stale_first_views(self, held: list[int], index: int) -> int:
+        """How many of the `held` views (oldest first) a start should pass over: those sharing fewer
+        than `2 * min_inliers` tracks with frame `index`, up to the first that shares enough; the
+        last held view always stays. A turning camera loses its first view's tracks within a few
+        frames (TUM fr1/rpy: 91 of 1000 after one frame, none after 18)."""
+        need = 2 * self.cfg.min_inliers
+        drop = 0
+        while drop + 1 < len(held) and self.common_tracks(held[drop], index) < need:
+            drop += 1
+        return drop
+
     def two_view(self, first: int, second: int, median_m: float, fallback: bool = False) -> TwoViewTracks | None:
         """A start without depth priors: `second`'s pose with `first` at the identity, from the
         essential matrix of their common tracks, scaled so the median depth of the triangulated

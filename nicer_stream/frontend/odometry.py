@@ -61,10 +61,8 @@ class FrontendOdometry:
         need = 2 * self.frontend.cfg.min_inliers
         while self.held and len(self.frontend.obs[self.held[0]][0]) < need:
             self.held.pop(0)
-        # A turning camera loses the first view's tracks within a few frames: the start slides to the
-        # oldest held view that still shares enough tracks with this one.
-        while len(self.held) > 1 and self.frontend.common_tracks(self.held[0], index) < need:
-            self.held.pop(0)
+        # The start slides to the oldest held view that still shares enough tracks with this one.
+        self.held = self.held[self.frontend.stale_first_views(self.held, index):]
         if not self.held:
             return
         self.frontend.pinned = {self.held[0]}

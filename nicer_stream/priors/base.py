@@ -117,8 +117,12 @@ class PriorEngine:
     def priors(self, frame: Frame, others: Iterable[Frame] = ()) -> Priors:
         """Depth/normal of `frame` and its flows to each of `others`."""
         dn = self.depth_normal.predict(frame)
-        flows = [f for f in (self.flow(frame, o) for o in others) if f is not None]
+        flows = self.flows((frame, o) for o in others)
         return Priors(frame_index=frame.index, provider=self.label, depth=dn.depth, normal=dn.normal, flows=flows)
+
+    def flows(self, pairs: Iterable[tuple[Frame, Frame]]) -> list[FlowPrior]:
+        """The flow src -> dst of each (src, dst) pair, in order, leaving out those it has none of."""
+        return [f for f in (self.flow(src, dst) for src, dst in pairs) if f is not None]
 
     def _put(self, key: tuple[int, int], value: FlowPrior) -> None:
         self._flows[key] = value

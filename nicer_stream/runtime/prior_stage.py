@@ -39,12 +39,12 @@ class PriorStage:
         """The latest frame's flows, as `__call__(frame, flows=True)` would have given them (no
         depth or normal)."""
         frame, keyframes, _ = self._latest
-        fw = [f for f in (self.engine.flow(frame, o) for o in keyframes) if f is not None]
+        fw = self.engine.flows((frame, o) for o in keyframes)
         return Priors(frame_index=frame.index, provider=self.engine.label, flows=fw + self._back_flows())
 
     def _back_flows(self) -> list:
         frame, _, sources = self._latest
-        return [f for f in (self.engine.flow(src, frame) for src in sources) if f is not None]
+        return self.engine.flows((src, frame) for src in sources)
 
     def add_keyframe(self, frame: Frame) -> None:
         self.keyframes = (self.keyframes + [frame])[-self.keep:]

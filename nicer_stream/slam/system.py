@@ -8,11 +8,13 @@ frames that carry any (priors are computed beforehand by runtime.prior_stage).
 """
 from __future__ import annotations
 
+import itertools
 import logging
 import math
 import random
 import time
 from contextlib import contextmanager
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
@@ -145,8 +147,7 @@ class SlamSystem:
         done = self._collect()  # mapping calls that finished on the worker since the last frame
         self._more_flows = flows
         if flows is not None and (self.model is None or self.frontend is None or self.pending):
-            priors = Priors(priors.frame_index, priors.provider, priors.depth, priors.normal,
-                            priors.flows + flows().flows) if priors is not None else flows()
+            priors = replace(priors, flows=priors.flows + flows().flows) if priors is not None else flows()
             self._more_flows = None
         events = done + self._step(frame, priors)
         warnings, self._warnings = self._warnings, []
@@ -183,16 +184,13 @@ class SlamSystem:
 
     def _slide_start(self, mf: MapFrame | None) -> None:
         """Without a depth prior the start needs tracks the first held view shares with a later
-        one; a turning camera loses them within a few frames (TUM fr1/rpy: 91 of 1000 after one
-        frame, none after 18). The first view then moves to the oldest held frame that still
-        shares `2 * min_inliers` tracks with `mf`; the frames it passes get no pose."""
+        one: the first view moves to the oldest held frame that still shares enough with `mf`
+        (`ClassicalFrontend.stale_first_views`; never onto or past a corrupt frame); the frames it
+        passes get no pose."""
         if self.frontend is None or mf is None or self.pending[0] is None or self.pending[0].depth_prior is not None:
             return
-        need = 2 * self.cfg.frontend.min_inliers
-        drop = 0
-        while (drop + 1 < len(self.pending) and self.pending[drop + 1] is not None
-               and self.frontend.common_tracks(self.pending[drop].index, mf.index) < need):
-            drop += 1
+        held = list(itertools.takewhile(lambda p: p is not None, self.pending))
+        drop = self.frontend.stale_first_views([p.index for p in held], mf.index)
         if not drop:
             return
         passed = [p.index for p in self.pending[:drop] if p is not None]
