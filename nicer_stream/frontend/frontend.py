@@ -161,8 +161,8 @@ class ClassicalFrontend:
     def stale_first_views(self, held: list[int], index: int) -> int:
         """How many of the `held` views (oldest first) a start should pass over: those sharing fewer
         than `2 * min_inliers` tracks with frame `index`, up to the first that shares enough; the
-        last held view always stays. A turning camera loses its first view's tracks within a few
-        frames (TUM fr1/rpy: 91 of 1000 after one frame, none after 18)."""
+        last held view always stays. Why: a turning camera loses its first view's tracks within a few
+        frames, long before the start has parallax (docs/decisions.md)."""
         need = 2 * self.cfg.min_inliers
         drop = 0
         while drop + 1 < len(held) and self.common_tracks(held[drop], index) < need:

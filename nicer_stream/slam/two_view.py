@@ -30,14 +30,11 @@ from nicer_stream.types import Intrinsics
 
 log = logging.getLogger(__name__)
 
-# A fitted (w, q) may put at most this fraction of a prior's pixels at non-positive depth. With
-# DIS flow on the synthetic room (frames 0/10) the realistic oracle's fit put 32% of frame 0's
-# pixels below 0.1 m and the whole run broke (ATE 38 cm); correct fits put none there.
+# A fitted (w, q) may put at most this fraction of a prior's pixels at non-positive depth: a
+# correct fit puts none there (docs/decisions.md, "The two-view start's checks").
 MAX_BEHIND = 0.01
 # The two-view fit's depth of the first frame may differ from its normal prior's start by at most
-# this fraction of the median. Measured on frames 0/10 (docs/priors.md): with
-# GT flow 1.0-1.9% on Replica and the synthetic room (the two-view shift then 0.1-10% of the median
-# off, the normals' 1-5%); with DIS flow 5.9-80% (the two-view's 12-93% off, the normals' 1-5%).
+# this fraction of the median: beyond it the flow, not the normals, is wrong (same entry).
 MAX_DISAGREEMENT = 0.04
 
 
