@@ -44,13 +44,15 @@ def _cache_dir(arg: str, name: str) -> str:
     return arg
 
 
-def make_depth_normal_provider(name: str, device: str | torch.device = "cpu") -> DepthNormalProvider:
-    """Depth/normal provider named `name` (see DEPTH_NORMAL_PROVIDERS); models go to `device`."""
+def make_depth_normal_provider(name: str, device: str | torch.device = "cpu",
+                                auto_fallback: str = "stereo") -> DepthNormalProvider:
+    """Depth/normal provider named `name` (see DEPTH_NORMAL_PROVIDERS); models go to `device`;
+    `auto` without learned weights is `auto_fallback`."""
     kind, arg = _split(name)
     if kind == "auto" and not arg:
         from nicer_stream.priors.auto import choose
 
-        chosen, reason = choose()
+        chosen, reason = choose(fallback=auto_fallback)
         provider = make_depth_normal_provider(chosen, device)
         provider.auto_reason = reason
         return provider
