@@ -132,7 +132,7 @@ def run_map(req: MapRequest) -> Path:
     torch.manual_seed(cfg.seed)
     retain_freed_memory()
     enable_onednn_matmul()
-    engine = make_engine(req.priors, req.flow, req.device, auto_fallback="none")
+    engine = make_engine(req.priors, req.flow, req.device, auto_fallback="none", seed=cfg.seed)
     if engine.depth_normal.auto_reason:
         print(engine.depth_normal.auto_reason, flush=True)
     fuse = fuses_stereo(cfg, engine.depth_normal.name)

@@ -68,7 +68,7 @@ class RunSession(RunState):
         self.source, _ = open_configured(req.source, req.source_opts, cfg)
         self.out = Path(req.out_dir)
         self.out.mkdir(parents=True, exist_ok=True)
-        self.engine = make_engine(req.priors, req.flow, req.device)
+        self.engine = make_engine(req.priors, req.flow, req.device, seed=cfg.seed)
         if self.engine.depth_normal.auto_reason:
             print(self.engine.depth_normal.auto_reason, flush=True)
         self.stage = PriorStage(self.engine)
