@@ -39,12 +39,12 @@ def main() -> None:
     ap.add_argument("--max-rel", type=float, nargs="+", default=[StereoConfig.mono_max_rel])
     ap.add_argument("--spread", type=float, nargs="+", default=[StereoConfig.mono_veto_spread],
                     help="the veto's share at least this many robust spreads of the stereo around the fit (0: off)")
-    ap.add_argument("--field-cells", type=int, default=OracleCorruption.field_cells,
-                    help="cells of the realistic oracle's distortion field (finer: a harder prior)")
+    ap.add_argument("--field-length", type=float, default=OracleCorruption.field_length_m,
+                    help="length scale in metres of the realistic oracle's distortion field (shorter: a harder prior)")
     a = ap.parse_args()
     frames = list(open_source(a.source, SourceOptions(max_side=320, detail_side=1200)))
     params = StereoConfig()
-    oracle = OracleDepthNormal(a.seed, OracleCorruption.clean() if a.clean else OracleCorruption(field_cells=a.field_cells))
+    oracle = OracleDepthNormal(a.seed, OracleCorruption.clean() if a.clean else OracleCorruption(field_length_m=a.field_length))
     rows: dict[str, list[tuple[float, float]]] = {}
     for k in KEYFRAMES:
         f = frames[k]
@@ -80,7 +80,7 @@ def main() -> None:
                     out[f"fused, {c} cells, max_rel {r:g}, spread {k:g}"] = l1(fuse_depth(d, aligned, r, k))
         for name, v in out.items():
             rows.setdefault(name, []).append(v)
-    what = "clean" if a.clean else f"field over {a.field_cells} cells"
+    what = "clean" if a.clean else f"field over {a.field_length} m"
     print(f"| depth (seed {a.seed}, {what}) | "
           + " | ".join(f"kf {k}" for k in KEYFRAMES) + " | mean |")
     print("|---" * (len(KEYFRAMES) + 2) + "|")

@@ -5,42 +5,54 @@ from pathlib import Path
 
 import typer
 
-from nicer_stream.cli.common import DROP_HELP, parse_drop, parse_intrinsics, user_errors
+from nicer_stream.cli import options as o
+from nicer_stream.cli.common import user_errors
+from nicer_stream.errors import UserError
+
+POSES_HELP = "A TUM trajectory file (one line per frame), or 'gt' for the source's ground-truth poses (evaluation only)."
+PRIORS_HELP = ("Depth/normal priors: auto (learned weights if present, else none), none, oracle (GT with a monocular "
+               "network's errors, evaluation only), oracle:clean (near GT, debugging), cache:DIR, omnidata, depth-anything.")
 
 
 def map_command(
-    source: str = typer.Option(..., "--source", help="Source URI, e.g. replica:PATH, tum:PATH, synthetic:room."),
+    source: str = typer.Option(..., "--source", help=o.SOURCE_HELP),
     out: Path = typer.Option(..., "--out", help="Output directory."),
-    poses: str = typer.Option("gt", "--poses", help="'gt' (the source's poses) or a TUM trajectory file (one line per frame)."),
-    priors: str = typer.Option("oracle", "--priors", help="Depth/normal priors: oracle, oracle:clean, none, cache:DIR, omnidata, depth-anything."),
-    flow: str = typer.Option(None, "--flow", help="Flow prior: oracle, dis, none, cache:DIR (default: oracle with oracle:clean priors, else dis)."),
-    preset: str = typer.Option("fast", "--preset", help="fast (2-core CPU) or paper."),
-    config: str = typer.Option(None, "--config", help="A .toml/.json file overriding preset fields."),
-    iters: int = typer.Option(None, "--iters", help="Mapping iterations (default: the preset's batch_iters)."),
-    minutes: float = typer.Option(None, "--minutes", help="Stop mapping after about this many minutes."),
-    device: str = typer.Option("cpu", "--device", help="torch device, e.g. cpu or cuda."),
-    max_side: int = typer.Option(None, "--max-side", help="Resize so the longer side is at most N pixels (default: preset)."),
-    stride: int = typer.Option(1, "--stride"),
-    start: int = typer.Option(0, "--start"),
-    drop: str = typer.Option(None, "--drop", help=DROP_HELP),
-    max_frames: int = typer.Option(None, "--max-frames"),
-    intrinsics: str = typer.Option(None, "--intrinsics", help="fx,fy,cx,cy at the original image size."),
-    render_every: int = typer.Option(None, "--render-every", help="Render and evaluate every N-th frame (default: at most 20 views, spread evenly)."),
+    poses: str = typer.Option(..., "--poses", help=POSES_HELP),
+    priors: str = typer.Option("auto", "--priors", help=PRIORS_HELP),
+    flow: str = o.FLOW,
+    preset: str = o.PRESET,
+    config: str = o.CONFIG,
+    iters: int = typer.Option(None, "--iters", help="Mapping iterations, N >= 1 (default: the preset's batch_iters)."),
+    minutes: float = typer.Option(None, "--minutes", help="Stop mapping after about this many minutes (> 0)."),
+    device: str = o.DEVICE,
+    max_side: int = o.MAX_SIDE,
+    stride: int = o.STRIDE,
+    start: int = o.START,
+    drop: str = o.DROP,
+    max_frames: int = o.MAX_FRAMES,
+    intrinsics: str = o.INTRINSICS,
+    render_every: int = typer.Option(None, "--render-every", help="Render and evaluate every N-th frame, N >= 1 (default: at most 20 views, spread evenly)."),
 ) -> None:
     """Fit the neural scene to frames with known poses; writes trajectory, mesh, renders, summary (and eval.json with GT)."""
-    user_errors(_run)(source, out, poses, priors, flow, preset, config, iters, minutes, device, max_side, stride, start,
-                      drop, max_frames, intrinsics, render_every)
+    frames = o.SourceFlags(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side,
+                           intrinsics=intrinsics)
+    flags = o.RunFlags(preset=preset, config=config, priors=priors, flow=flow, device=device)
+    user_errors(_run)(source, out, poses, frames, flags, iters, minutes, render_every)
 
 
-def _run(source, out, poses, priors, flow, preset, config, iters, minutes, device, max_side, stride, start, drop, max_frames,
-         intrinsics, render_every) -> None:
+def _run(source: str, out: Path, poses: str, frames: o.SourceFlags, flags: o.RunFlags, iters: int | None,
+         minutes: float | None, render_every: int | None) -> None:
     from nicer_stream.cli.run_report import evaluate_and_print
     from nicer_stream.runtime.map_known_poses import MapRequest, run_map
-    from sources.base import SourceOptions
 
-    opts = SourceOptions(start=start, stride=stride, drop=parse_drop(drop), max_frames=max_frames, max_side=max_side,
-                         intrinsics=parse_intrinsics(intrinsics))
-    out_dir = run_map(MapRequest(source=source, out_dir=out, poses=poses, priors=priors, flow=flow, preset=preset,
-                                 config_file=config, iters=iters, minutes=minutes, device=device, render_every=render_every,
-                                 source_opts=opts))
+    o.at_least("--iters", iters, 1)
+    o.at_least("--render-every", render_every, 1)
+    if minutes is not None and not minutes > 0:
+        raise UserError(f"--minutes must be > 0, got {minutes}")
+    if flags.priors == "stereo":
+        raise UserError("--priors stereo needs the SLAM's poses: use `nicer-stream run` (map takes per-frame priors)")
+    opts = frames.options()
+    out_dir = run_map(MapRequest(source=source, out_dir=out, poses=poses, priors=flags.priors, flow=flags.flow,
+                                 preset=flags.preset, config_file=flags.config, iters=iters, minutes=minutes,
+                                 device=o.check_device(flags.device), render_every=render_every, source_opts=opts))
     evaluate_and_print(out_dir, source, opts)

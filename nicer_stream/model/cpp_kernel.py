@@ -4,8 +4,9 @@ torch's C++ extension loader compiles a source once (g++ and ninja; ~25 s) and c
 ~/.cache/torch_extensions, under a name that carries the checkout's path: torch rebuilds a cached
 extension whose source path changed, so two checkouts sharing one name rebuilt each other's at
 every process start. The grid and activation kernels are built with `-march=native`, so the name
-also carries the CPU's model and instruction-set flags: a cache shared between machines (a network
-home directory) never loads a build made for another CPU. It carries the source's bytes, the flags
+also carries what the compiler resolves that to (the CPU's model and instruction sets, without the
+kernel's volatile flags): a cache shared between machines (a network home directory) never loads
+a build made for another CPU. It carries the source's bytes, the flags
 and torch's version too, so a finished build under that name is the build: it is imported directly.
 torch's `load` takes a `lock` file in the build directory on every first use in a process, even to
 find the build up to date, and a process killed there (Ctrl-C, a stopped run, a test that kills one)
@@ -31,14 +32,54 @@ KERNEL_DIR = Path(__file__).parent / "kernels"
 
 @lru_cache(maxsize=1)
 def cpu_identity() -> str:
-    """The CPU's model name and instruction-set flags (Linux: /proc/cpuinfo), else the platform's
-    processor string: what a `-march=native` build depends on."""
+    """What a `-march=native` build depends on: the target options the compiler resolves it to
+    (`native_target`), else the CPU's model name and flags (`cpuinfo_identity`). Nothing else
+    about the machine enters, so the name stays put while the build would not change."""
+    return native_target() or cpuinfo_identity()
+
+
+def native_target(compiler: str | None = None) -> str:
+    """The compiler's `-march=native`: its -march / -mtune values and the enabled target options,
+    sorted ('' when no compiler answers)."""
+    import subprocess
+
+    cmd = [compiler or os.environ.get("CXX", "c++"), "-march=native", "-Q", "--help=target"]
     try:
-        lines = Path("/proc/cpuinfo").read_text().splitlines()
-    except OSError:
-        lines = []
-    keep = [ln.split(":", 1)[1].strip() for ln in lines if ln.split(":", 1)[0].strip() in ("model name", "flags")]
-    return "\n".join(dict.fromkeys(keep)) or f"{platform.machine()} {platform.processor()}"
+        text = subprocess.run(cmd, capture_output=True, text=True, timeout=30, check=True).stdout
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return target_options(text)
+
+
+def target_options(help_text: str) -> str:
+    """`-Q --help=target` output -> its -march/-mtune values and enabled options, one per line, sorted."""
+    keep = set()
+    for line in help_text.splitlines():
+        parts = line.split()
+        if len(parts) == 2 and parts[0] in ("-march=", "-mtune="):
+            keep.add(parts[0] + parts[1])
+        elif len(parts) == 2 and parts[0].startswith("-m") and parts[1] == "[enabled]":
+            keep.add(parts[0])
+    return "\n".join(sorted(keep))
+
+
+def cpuinfo_identity(text: str | None = None) -> str:
+    """The CPU's model name and the flags every core has, sorted (Linux: /proc/cpuinfo), else the
+    platform's processor string."""
+    if text is None:
+        try:
+            text = Path("/proc/cpuinfo").read_text()
+        except OSError:
+            text = ""
+    models, flags = set(), None
+    for line in text.splitlines():
+        key, _, value = line.partition(":")
+        if key.strip() == "model name":
+            models.add(value.strip())
+        elif key.strip() == "flags":
+            flags = set(value.split()) if flags is None else flags & set(value.split())
+    ident = sorted(models) + sorted(flags or ())
+    return "\n".join(ident) or f"{platform.machine()} {platform.processor()}"
 
 
 def build_name(name: str, kernel_dir: Path = KERNEL_DIR, cpu: str | None = None, content: str = "") -> str:

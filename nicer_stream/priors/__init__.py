@@ -44,14 +44,16 @@ def _cache_dir(arg: str, name: str) -> str:
     return arg
 
 
-def make_depth_normal_provider(name: str, device: str | torch.device = "cpu") -> DepthNormalProvider:
-    """Depth/normal provider named `name` (see DEPTH_NORMAL_PROVIDERS); models go to `device`."""
+def make_depth_normal_provider(name: str, device: str | torch.device = "cpu",
+                                auto_fallback: str = "stereo", seed: int = 0) -> DepthNormalProvider:
+    """Depth/normal provider named `name` (see DEPTH_NORMAL_PROVIDERS); models go to `device`;
+    `auto` without learned weights is `auto_fallback`; `seed` (the config's) draws the oracle's errors."""
     kind, arg = _split(name)
     if kind == "auto" and not arg:
         from nicer_stream.priors.auto import choose
 
-        chosen, reason = choose()
-        provider = make_depth_normal_provider(chosen, device)
+        chosen, reason = choose(fallback=auto_fallback)
+        provider = make_depth_normal_provider(chosen, device, seed=seed)
         provider.auto_reason = reason
         return provider
     if kind == "none" and not arg:
@@ -63,7 +65,7 @@ def make_depth_normal_provider(name: str, device: str | torch.device = "cpu") ->
     if kind == "oracle" and arg in ("", "clean"):
         from nicer_stream.priors.oracle import OracleCorruption, OracleDepthNormal
 
-        return OracleDepthNormal(corruption=OracleCorruption.clean() if arg else OracleCorruption())
+        return OracleDepthNormal(seed, OracleCorruption.clean() if arg else OracleCorruption())
     if kind == "cache":
         from nicer_stream.priors.cache import CacheDepthNormal
 

@@ -29,9 +29,10 @@ def learned_weights() -> tuple[str | None, str]:
     return None, f"no learned weights in {hub} or {_hf_cache()}"
 
 
-def choose(learned: tuple[str | None, str] | None = None) -> tuple[str, str]:
-    """(provider name, one-line reason) for `auto`."""
+def choose(learned: tuple[str | None, str] | None = None, fallback: str = "stereo") -> tuple[str, str]:
+    """(provider name, one-line reason) for `auto`: the learned provider, else `fallback` (`map`
+    takes per-frame priors, so its fallback is `none` rather than the SLAM's stereo)."""
     name, where = learned if learned is not None else learned_weights()
     if name is not None:
         return name, f"auto chose {name}: {where}"
-    return "stereo", f"auto chose stereo: {where}"
+    return fallback, f"auto chose {fallback}: {where}"

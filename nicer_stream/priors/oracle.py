@@ -6,22 +6,24 @@ on indoor scenes; `oracle:clean` is nearly GT, for debugging only (`OracleCorrup
 Depth: GT z-depth with invalid pixels filled (nearest valid), blurred edges, a smooth
 multiplicative distortion field, noise, and a random per-frame affine map (scale in [0.5, 2],
 positive shift): as ambiguous as a monocular prediction. Normals: from the GT depth blurred
-(rounded edges), tilted by a smooth random field plus noise. Flow: GT depth + GT poses, with
+(rounded edges), tilted by a smooth random field plus noise. The fields live on the scene's
+points (world frame, GT pose), so every view of a place shares its error, as a network's errors
+are consistent across views; they and the per-frame draws follow the run's config `seed`. Flow: GT depth + GT poses, with
 occlusion and out-of-image pixels marked invalid (`--flow oracle`; realistic runs use DIS).
 
 Published error statistics the realistic defaults follow, after per-image scale-and-shift
 alignment (depth) or as raw angles (normals):
 - Depth AbsRel 0.08-0.11 on NYUv2 zero-shot for DPT / MiDaS v3 (Ranftl et al., "Vision
   Transformers for Dense Prediction", ICCV 2021, Table 1; Eftekhar et al., "Omnidata",
-  ICCV 2021 reports the same class of errors). Here: a smooth field of 9% std (clipped at
-  +-22%) plus 2% noise gives AbsRel 0.071 on the Replica clip, 0.076 on the synthetic room
-  (`tests/nicer_stream/priors/test_oracle.py` measures it).
+  ICCV 2021 reports the same class of errors). Here: a field of 12% std over 0.25 m of the
+  scene (clipped at 2.5 std) plus 2% noise gives AbsRel 0.087-0.101 on the Replica clip and
+  the synthetic room over seeds 0-2 (`tests/nicer_stream/priors/test_oracle.py` checks the range).
 - Depth edges: those networks predict at 384 px and are upsampled: discontinuities blur
   over a few pixels of the input (sigma 0.8% of the image width here: 2.6 px at 320 px).
 - Normals: mean angular error 15-20 degrees on NYUv2 / ScanNet for Omnidata's normal model
   (Eftekhar et al. 2021; Bae et al., "Estimating and Exploiting the Aleatoric Uncertainty in
-  Surface Normal Estimation", ICCV 2021, Table 1: 14.9-20 deg); here 17.0 degrees on the
-  Replica clip, 13.4 on the synthetic room (measured by the same test).
+  Surface Normal Estimation", ICCV 2021, Table 1: 14.9-20 deg); here 16-17.5 degrees on the
+  Replica clip, 12.5-14 on the synthetic room (measured by the same test).
 """
 from __future__ import annotations
 
@@ -58,10 +60,11 @@ class OracleCorruption:
     """Depth blur as a fraction of the image width (edges blurred over several pixels)."""
     noise_rel: float = 0.02
     """Per-pixel depth noise std, relative to the median depth."""
-    field_std: float = 0.09
+    field_std: float = 0.12
     """Std of the smooth multiplicative depth distortion log(d'/d) (clipped at 2.5 std)."""
-    field_cells: int = 4
-    """The distortion and normal fields vary over about this many cells across the image."""
+    field_length_m: float = 0.25
+    """Length scale of the distortion and normal fields, in metres of the scene: a field over the
+    scene's points (world frame), so every view of a place shares its error, as a network's do."""
     normal_blur_frac: float = 0.005
     """Normals come from the GT depth blurred by this fraction of the image width (rounded edges)."""
     normal_field_std: float = 0.1
@@ -90,14 +93,29 @@ class OracleCorruption:
                 f"{self.normal_noise_std} noise)")
 
 
-def smooth_field(shape: tuple[int, int], cells: int, rng: np.random.Generator, channels: int = 1) -> np.ndarray:
-    """(H, W, channels) float32 random field of unit std that varies over ~`cells` cells across
-    the image: Gaussian values on a coarse grid, resized bicubically."""
-    h, w = shape
-    gh, gw = max(2, round(cells * h / max(h, w)) + 1), cells + 1
-    coarse = rng.normal(size=(gh, gw, channels)).astype(np.float32)
-    out = cv2.resize(coarse, (w, h), interpolation=cv2.INTER_CUBIC).reshape(h, w, channels)
-    return out / max(float(out.std()), 1e-6)
+FIELD_FEATURES = 64
+"""Random Fourier features of a scene field: enough for a smooth field of unit variance."""
+
+
+def scene_field(points: np.ndarray, seed: int, stream: int, length_m: float, channels: int = 1) -> np.ndarray:
+    """(..., 3) points -> (..., channels) float32 smooth random field of unit variance with a
+    Gaussian correlation of length `length_m`, the same for every frame of a scene and `seed`
+    (random Fourier features; `stream` tells the fields of one seed apart)."""
+    rng = np.random.default_rng([seed, 1_000_003, stream])
+    w = rng.normal(0.0, 1.0 / length_m, size=(channels, FIELD_FEATURES, 3))
+    b = rng.uniform(0.0, 2 * np.pi, size=(channels, FIELD_FEATURES))
+    x = points.reshape(-1, 3).astype(np.float64)
+    out = np.sqrt(2.0 / FIELD_FEATURES) * np.cos(np.einsum("nd,ckd->nck", x, w) + b).sum(-1)
+    return out.reshape(*points.shape[:-1], channels).astype(np.float32)
+
+
+def world_points(depth: np.ndarray, intr: Intrinsics, T_world_cam: np.ndarray | None) -> np.ndarray:
+    """(H, W) z-depth -> (H, W, 3) points in the world frame (the camera's without a pose)."""
+    uv = pixel_grid(intr, dtype=torch.float64)
+    p = unproject(uv, torch.from_numpy(depth.astype(np.float64)).reshape(-1), intr)
+    if T_world_cam is not None:
+        p = transform_points(torch.from_numpy(np.asarray(T_world_cam, dtype=np.float64)), p)
+    return p.reshape(*depth.shape, 3).numpy()
 
 
 def fill_invalid_nearest(depth: np.ndarray) -> np.ndarray:
@@ -107,15 +125,16 @@ def fill_invalid_nearest(depth: np.ndarray) -> np.ndarray:
     return fill_nearest(depth)
 
 
-def corrupt_depth(depth: np.ndarray, rng: np.random.Generator, c: OracleCorruption) -> np.ndarray:
+def corrupt_depth(depth: np.ndarray, rng: np.random.Generator, c: OracleCorruption,
+                  field: np.ndarray | None = None) -> np.ndarray:
     """(H, W) filled metric depth -> (H, W) float32 relative depth
-    s * (blur(d) * exp(field) + noise) + t."""
+    s * (blur(d) * exp(field_std * field) + noise) + t, `field` (H, W) of unit std (the scene's
+    at the frame's points); the noise, s and t drawn from `rng` (per frame)."""
     med = float(np.median(depth))
     sigma = max(c.blur_sigma_px, c.blur_sigma_frac * depth.shape[1])
     d = cv2.GaussianBlur(depth.astype(np.float32), (0, 0), sigma) if sigma > 0 else depth
-    if c.field_std > 0:
-        f = np.clip(smooth_field(d.shape, c.field_cells, rng)[..., 0], -2.5, 2.5)
-        d = d * np.exp(c.field_std * f)
+    if c.field_std > 0 and field is not None:
+        d = d * np.exp(c.field_std * np.clip(field, -2.5, 2.5))
     d = d + rng.normal(0.0, c.noise_rel * med, size=d.shape).astype(np.float32)
     s = rng.uniform(*c.scale_range)
     t = rng.uniform(*c.shift_range) * med * s
@@ -155,17 +174,18 @@ def flow_from_depth_pose(
     return flow, valid.reshape(h, w).numpy()
 
 
-def corrupt_normals(depth: np.ndarray, intr: Intrinsics, rng: np.random.Generator, c: OracleCorruption) -> np.ndarray:
+def corrupt_normals(depth: np.ndarray, intr: Intrinsics, rng: np.random.Generator, c: OracleCorruption,
+                    tilt_field: np.ndarray | None = None) -> np.ndarray:
     """(H, W) filled metric depth -> (H, W, 3) float32 unit camera-frame normals facing the
-    camera: from the depth blurred by `normal_blur_frac` of the width, tilted by a smooth
-    random field plus per-pixel noise."""
+    camera: from the depth blurred by `normal_blur_frac` of the width, tilted by `tilt_field`
+    (H, W, 3) camera-frame vectors of unit std (the scene's) plus per-pixel noise."""
     sigma = c.normal_blur_frac * depth.shape[1]
     d = cv2.GaussianBlur(depth.astype(np.float32), (0, 0), sigma) if sigma > 0 else depth
     n = normals_from_depth(d, intr)
     if c.normal_field_std == 0 and c.normal_noise_std == 0:
         return n
-    tilt = c.normal_field_std * smooth_field(depth.shape, c.field_cells, rng, 3)
-    tilt += rng.normal(0.0, c.normal_noise_std, size=tilt.shape).astype(np.float32)
+    tilt = c.normal_field_std * (tilt_field if tilt_field is not None else np.zeros_like(n))
+    tilt = tilt + rng.normal(0.0, c.normal_noise_std, size=tilt.shape).astype(np.float32)
     n = n + tilt
     n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-9)
     # Still facing the camera (a network predicts visible sides).
@@ -173,7 +193,9 @@ def corrupt_normals(depth: np.ndarray, intr: Intrinsics, rng: np.random.Generato
 
 
 class OracleDepthNormal(DepthNormalProvider):
-    """`oracle` depth + normals from GT depth; deterministic per (seed, frame index)."""
+    """`oracle` depth + normals from GT depth: the errors of one place shared by every view of it
+    (fields over the scene's points, GT pose), the per-frame scale, shift and noise drawn per
+    (seed, frame index); `seed` is the run's config `seed`."""
 
     name = "oracle"
 
@@ -188,10 +210,16 @@ class OracleDepthNormal(DepthNormalProvider):
             raise UserError(_NEEDS_GT.format(what="depth", index=frame.index))
         filled = fill_invalid_nearest(frame.gt_depth)
         rng = np.random.default_rng([self.seed, frame.index])
-        return DepthNormal(
-            depth=corrupt_depth(filled, rng, self.corruption),
-            normal=corrupt_normals(filled, frame.intrinsics, rng, self.corruption),
-        )
+        c = self.corruption
+        field = tilt = None
+        if c.field_std > 0 or c.normal_field_std > 0:
+            pts = world_points(filled, frame.intrinsics, frame.gt_pose)
+            field = scene_field(pts, self.seed, 0, c.field_length_m)[..., 0]
+            tilt = scene_field(pts, self.seed, 1, c.field_length_m, 3)
+            if frame.gt_pose is not None:  # world-frame tilt vectors seen from this camera
+                tilt = tilt @ np.asarray(frame.gt_pose, dtype=np.float32)[:3, :3]
+        return DepthNormal(depth=corrupt_depth(filled, rng, c, field),
+                           normal=corrupt_normals(filled, frame.intrinsics, rng, c, tilt))
 
 
 class OracleFlow(FlowProvider):

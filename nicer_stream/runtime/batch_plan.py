@@ -8,11 +8,12 @@ import json
 import os
 import re
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 from nicer_stream.errors import UserError, one_line
 from nicer_stream.io import output_dir as od
+from nicer_stream.runtime.slam_run import RunRequest
 
 BATCH_FILE = "batch.json"
 PID_FILE = ".worker.pid"  # the process running a source (for tests and for users who need to kill one)
@@ -123,34 +124,49 @@ def record_from_outputs(item: BatchItem, out_dir: Path, status: str, error: str 
     return rec
 
 
+def _default_request() -> RunRequest:
+    return RunRequest(source="", out_dir=Path())
+
+
 @dataclass(frozen=True)
 class RunOptions:
-    """The `run` options every source of the batch gets."""
+    """What every source of the batch gets."""
 
-    preset: str = "fast"
-    priors: str = "auto"
-    flow: str | None = None
-    config_file: str | None = None
-    max_frames: int | None = None
-    max_side: int | None = None
-    stride: int = 1
-    device: str = "cpu"
+    request: RunRequest = field(default_factory=_default_request)
+    """The `run` request of each source, its source and output directory replaced (and quiet)."""
     evaluate: bool = True
+    """Evaluate each output directory against the source's ground truth, where it has some."""
+
+
+def per_source_sinks(specs: tuple[str, ...], out: Path) -> tuple[str, ...]:
+    """Sink specs with each file moved into the source's own directory (`mcap:rec.mcap` ->
+    `mcap:ROOT/NAME/rec.mcap`), so that the sources do not write one file."""
+    res = []
+    for spec in specs:
+        parts = []
+        for part in spec.split(","):
+            base, q, query = part.partition("?")
+            kind, sep, path = base.partition(":")
+            if kind in ("rerun", "mcap") and path:
+                base = f"{kind}:{out / Path(path).name}"
+            parts.append(base + q + query)
+        res.append(",".join(parts))
+    return tuple(res)
 
 
 def run_one(item: BatchItem, root: str, opts: RunOptions) -> SourceRecord:
     """Run SLAM on one source into ROOT/name (quiet), evaluate it when it has ground truth, and
     return its row. Errors become the row's one-line error, never an exception."""
-    from nicer_stream.runtime.slam_run import RunRequest, run_slam
-    from sources.base import SourceOptions
+    from nicer_stream.runtime.slam_run import run_slam
 
     out = Path(root) / item.name
     out.mkdir(parents=True, exist_ok=True)
     (out / PID_FILE).write_text(str(os.getpid()))
-    src_opts = SourceOptions(max_frames=opts.max_frames, max_side=opts.max_side, stride=opts.stride)
+    req = replace(opts.request, source=item.source, out_dir=out, quiet=True,
+                  sinks=per_source_sinks(opts.request.sinks, out))
+    src_opts = req.source_opts
     try:
-        res = run_slam(RunRequest(source=item.source, out_dir=out, priors=opts.priors, flow=opts.flow, preset=opts.preset,
-                                  config_file=opts.config_file, device=opts.device, quiet=True, source_opts=src_opts))
+        res = run_slam(req)
         if res.exit_code in (130, 143):
             return record_from_outputs(item, out, "interrupted")
         if res.exit_code:

@@ -52,7 +52,8 @@ def run_batch(req: BatchRequest) -> BatchReport:
         else:
             records[item.name] = SourceRecord(item.name, item.source, "pending")
             todo.append(item)
-    opts = replace(req.opts, device="cuda" if req.gpus_per_run > 0 else req.opts.device)
+    run = req.opts.request
+    opts = replace(req.opts, request=replace(run, device="cuda" if req.gpus_per_run > 0 else run.device))
     progress = BatchProgress(len(todo), req.quiet)
     if not req.quiet:
         skipped = len(req.items) - len(todo)

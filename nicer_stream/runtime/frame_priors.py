@@ -10,11 +10,12 @@ from nicer_stream.priors import PriorEngine, make_depth_normal_provider, make_fl
 from nicer_stream.types import Frame
 
 
-def make_engine(priors: str, flow: str | None, device) -> PriorEngine:
-    """Depth/normal provider `priors`; flow defaults to `oracle` with `oracle:clean` priors, else
-    `dis` (the realistic `oracle` imitates a user's priors: its flow is the default provider's)."""
+def make_engine(priors: str, flow: str | None, device, auto_fallback: str = "stereo", seed: int = 0) -> PriorEngine:
+    """Depth/normal provider `priors` (`auto` without learned weights: `auto_fallback`); flow
+    defaults to `oracle` with `oracle:clean` priors, else `dis` (the realistic `oracle` imitates a
+    user's priors: its flow is the default provider's); `seed`: the config's, for the oracle."""
     flow = flow or ("oracle" if priors == "oracle:clean" else "dis")
-    return PriorEngine(make_depth_normal_provider(priors, device), make_flow_provider(flow, device))
+    return PriorEngine(make_depth_normal_provider(priors, device, auto_fallback, seed), make_flow_provider(flow, device))
 
 
 def provider_names(engine: PriorEngine) -> list[str]:

@@ -38,18 +38,30 @@ class MapRequest:
     """What `nicer-stream map` was asked to do."""
 
     source: str
+    """Source URI (`sources.open_source`)."""
     out_dir: Path
-    poses: str = "gt"
-    priors: str = "oracle"
+    """Output directory (created)."""
+    poses: str
+    """A TUM trajectory file, one line per frame, or 'gt': the source's ground truth, by name only."""
+    priors: str = "auto"
+    """Depth / normal provider by name; `auto` without learned weights is `none` (never `stereo`,
+    which needs the SLAM's poses)."""
     flow: str | None = None
+    """Flow provider by name (None: the depth provider's default)."""
     preset: str = "fast"
+    """Config preset: fast or paper."""
     config_file: str | None = None
+    """A .toml / .json file overriding preset fields."""
     iters: int | None = None
+    """Mapping iterations (None: the preset's `mapping.batch_iters`)."""
     minutes: float | None = None
+    """Stop mapping after about this many minutes (None: no limit)."""
     device: str = "cpu"
+    """torch device."""
     render_every: int | None = None
     """Render (and evaluate) every N-th frame; None: at most 20 views spread evenly."""
     source_opts: SourceOptions = SourceOptions()
+    """Which frames of the source, at what size, with which intrinsics."""
 
 
 def _poses(frames, spec: str) -> np.ndarray:
@@ -112,6 +124,7 @@ def _fuse_stereo(cfg, frames, mfs, poses, bound: SceneBound, points: np.ndarray 
 
 
 def run_map(req: MapRequest) -> Path:
+    """Fit the scene to the source's frames with the requested poses and write the output directory."""
     cfg = config_mod.load(req.preset, req.config_file)
     if req.priors == "stereo":
         raise UserError("--priors stereo needs the SLAM's poses: use `nicer-stream run` (map takes per-frame priors)")
@@ -119,7 +132,9 @@ def run_map(req: MapRequest) -> Path:
     torch.manual_seed(cfg.seed)
     retain_freed_memory()
     enable_onednn_matmul()
-    engine = make_engine(req.priors, req.flow, req.device)
+    engine = make_engine(req.priors, req.flow, req.device, auto_fallback="none", seed=cfg.seed)
+    if engine.depth_normal.auto_reason:
+        print(engine.depth_normal.auto_reason, flush=True)
     fuse = fuses_stereo(cfg, engine.depth_normal.name)
     # The frontend's larger images are the sweeps' too (`Frame.detail`).
     source, _ = open_configured(req.source, req.source_opts, cfg, tracking=fuse)
@@ -147,40 +162,49 @@ def run_map(req: MapRequest) -> Path:
             stereo = _fuse_stereo(cfg, frames, mfs, poses, bound, points)
     model = SceneModel(cfg.model, bound).to(req.device)
     beta = BetaField(cfg.render).to(req.device)
-    iters = req.iters or cfg.mapping.batch_iters
-    interrupted = False
-    stats = None
-    try:
-        with timer.stage("mapping"):
-            stats = Mapper(model, beta, cfg, cfg.seed).optimise(
-                mfs, poses, iters, progress=Progress("mapping"),
-                time_budget_s=req.minutes * 60 if req.minutes else None, color_start=cfg.mapping.batch_color_start)
-    except KeyboardInterrupt:
-        interrupted = True
-        log.warning("interrupted: writing the outputs of the mapping so far")
-    intr = frames[0].intrinsics
+    stats, interrupted = _optimise(req, cfg, model, beta, mfs, poses, timer)
     save_scene(out, cfg, model, beta)
     with timer.stage("sinks"):
-        every = req.render_every or -(-len(frames) // 20)
-        views = sorted(set(range(0, len(frames), max(1, every))) | {len(frames) - 1})
-        for k, i in enumerate(views):
-            view = render_image(model, beta, poses[frames[i].index], intr, cfg.render)
-            save_render(out, frames[i].index, view, frames[i].rgb, frames[i].timestamp)
-            print(f"render {k + 1}/{len(views)} (frame {frames[i].index})", flush=True)
-        write_trajectory(out, [f.timestamp for f in frames], list(poses_np))
-        measured = stereo.measured_views({f.index: poses_np[i] for i, f in enumerate(frames)}, intr) if stereo else []
-        write_mesh(out, scene_mesh(model, beta, poses_np, intr, cfg, measured=measured))
+        _write_views(req, cfg, model, beta, frames, poses, poses_np, stereo)
+    notes = [f"mapping with known poses ({req.poses}); scene bound from {bound.source}"]
+    notes += [engine.depth_normal.auto_reason] if engine.depth_normal.auto_reason else []
+    notes += [f"depth prior aligned to metres by flow triangulation on {len(aligned)}/{len(mfs)} frames"
+              + ("" if cfg.loss.metric_prior_alignment else " (for the bound only; the depth loss refits scale and shift)")]
+    notes += ([f"each frame's depth fitted to its plane-sweep stereo depth, which it fills (stereo.mono_fusion): "
+               f"{stereo.fusion_note('frame')}"] if stereo is not None else [])
     write_summary(
         out, frames=len(frames), preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
-        interrupted=interrupted, bound=bound, source=req.source,
-        notes=[f"mapping with known poses ({req.poses}); scene bound from {bound.source}",
-               f"depth prior aligned to metres by flow triangulation on {len(aligned)}/{len(mfs)} frames"
-               + ("" if cfg.loss.metric_prior_alignment else " (for the bound only; the depth loss refits scale and shift)")]
-        + ([f"each frame's depth fitted to its plane-sweep stereo depth, which it fills (stereo.mono_fusion): "
-            f"{stereo.fusion_note('frame')}"] if stereo is not None else []),
-        intrinsics=intrinsics_dict(intr),
-        config=config_mod.to_dict(cfg),
+        interrupted=interrupted, bound=bound, source=req.source, notes=notes,
+        intrinsics=intrinsics_dict(frames[0].intrinsics), config=config_mod.to_dict(cfg),
         stats={"iterations": stats.iters if stats else 0, "final_loss": stats.loss if stats else None,
                "loss_terms": stats.terms if stats else {}},
     )
     return out
+
+
+def _optimise(req: MapRequest, cfg, model, beta, mfs, poses, timer: StageTimer):
+    """The mapping iterations -> (their stats or None, whether Ctrl-C ended them)."""
+    iters = req.iters or cfg.mapping.batch_iters
+    try:
+        with timer.stage("mapping"):
+            return Mapper(model, beta, cfg, cfg.seed).optimise(
+                mfs, poses, iters, progress=Progress("mapping"),
+                time_budget_s=req.minutes * 60 if req.minutes else None,
+                color_start=cfg.mapping.batch_color_start), False
+    except KeyboardInterrupt:
+        log.warning("interrupted: writing the outputs of the mapping so far")
+        return None, True
+
+
+def _write_views(req: MapRequest, cfg, model, beta, frames, poses, poses_np, stereo) -> None:
+    """Renders of every N-th frame and the last one, the trajectory and the mesh."""
+    out, intr = Path(req.out_dir), frames[0].intrinsics
+    every = req.render_every or -(-len(frames) // 20)
+    views = sorted(set(range(0, len(frames), max(1, every))) | {len(frames) - 1})
+    for k, i in enumerate(views):
+        view = render_image(model, beta, poses[frames[i].index], intr, cfg.render)
+        save_render(out, frames[i].index, view, frames[i].rgb, frames[i].timestamp)
+        print(f"render {k + 1}/{len(views)} (frame {frames[i].index})", flush=True)
+    write_trajectory(out, [f.timestamp for f in frames], list(poses_np))
+    measured = stereo.measured_views({f.index: poses_np[i] for i, f in enumerate(frames)}, intr) if stereo else []
+    write_mesh(out, scene_mesh(model, beta, poses_np, intr, cfg, measured=measured))

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from nicer_stream.cli.run_cmd import _resolve_sinks
+from nicer_stream.cli.sink_specs import resolve_sinks as _resolve_sinks
 from nicer_stream.errors import UserError
 from sinks.options import SinkOptions, split_spec
 

@@ -88,3 +88,31 @@ def test_a_missing_source_gives_the_reference_path_not_an_import_error(tmp_path,
     monkeypatch.setenv("TORCH_EXTENSIONS_DIR", str(tmp_path))
     k = CppKernel("test_missing", "no_such_kernel.cpp", [])  # the constructor runs at import time
     assert k.module() is None
+
+
+def test_the_cpu_identity_ignores_flag_order_and_a_flag_only_one_core_has():
+    from nicer_stream.model.cpp_kernel import cpuinfo_identity, target_options
+
+    a = "model name\t: AMD EPYC\nflags\t\t: fpu sse avx avx2 hypervisor\nmodel name\t: AMD EPYC\nflags\t\t: avx2 avx fpu sse\n"
+    b = "model name\t: AMD EPYC\nflags\t\t: sse fpu avx2 avx\n"
+    assert cpuinfo_identity(a) == cpuinfo_identity(b) and "avx2" in cpuinfo_identity(a)
+    assert cpuinfo_identity(b) != cpuinfo_identity(b.replace(" avx2", ""))
+    gcc = "  -march=                     \tznver3\n  -mavx2                      \t[enabled]\n  -mavx512f                   \t[disabled]\n"
+    assert target_options(gcc) == "-march=znver3\n-mavx2"
+
+
+def test_the_kernel_names_are_the_same_in_every_process_of_a_checkout(tmp_path):
+    """Two processes, other working directories and thread settings: the same four names."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("from nicer_stream.model import grid_kernel, positional, softplus; from nicer_stream import denormals;"
+            "print(grid_kernel._KERNEL.name, positional.ENCODING_KERNEL.name, softplus._KERNEL.name, denormals._KERNEL.name)")
+    root = str(Path(__file__).resolve().parents[3])
+    names = []
+    for cwd, threads in ((tmp_path, "1"), (root, "2")):
+        env = {**os.environ, "PYTHONPATH": root, "OMP_NUM_THREADS": threads}
+        names.append(subprocess.run([sys.executable, "-c", code], cwd=cwd, env=env, capture_output=True, text=True,
+                                    check=True).stdout.split())
+    assert names[0] == names[1] and len(names[0]) == 4

@@ -13,7 +13,8 @@ import pytest
 
 from nicer_stream.errors import UserError
 from nicer_stream.io import output_dir as od
-from nicer_stream.runtime.batch_plan import PID_FILE, RunOptions, expand_sources, plan
+from nicer_stream.runtime.batch_plan import PID_FILE, RunOptions, expand_sources, plan, per_source_sinks
+from nicer_stream.runtime.slam_run import RunRequest
 from nicer_stream.runtime.batch_run import BatchRequest, run_batch
 
 SOURCES = ["synthetic:room?frames=4", "synthetic:tabletop?frames=4", "synthetic:room?frames=5"]
@@ -52,7 +53,7 @@ def test_batch_runs_every_source_reports_the_bad_one_and_skips_complete_ones(tmp
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(b"\x89MCAP0\r\nthis is not an mcap file")
     items = tuple(plan(SOURCES + [f"mcap:{bad}"]))
-    req = BatchRequest(items, tmp_path / "root", RunOptions(config_file=str(tiny_config), priors="oracle:clean"),
+    req = BatchRequest(items, tmp_path / "root", RunOptions(RunRequest(source="", out_dir=Path(), config_file=str(tiny_config), priors="oracle:clean")),
                        local=local, quiet=True)
     try:
         rep = run_batch(req)

@@ -18,7 +18,7 @@ from sources.base import SourceOptions
 def test_map_with_known_poses_fuses_a_monocular_prior_like_the_slam(tmp_path, tiny_config, priors):
     src = "synthetic:room?frames=40"
     opts = SourceOptions(max_frames=8, stride=4, max_side=96)  # parallax enough for a sweep at this size
-    out = run_map(MapRequest(source=src, out_dir=tmp_path / "out", priors=priors, config_file=str(tiny_config),
+    out = run_map(MapRequest(source=src, out_dir=tmp_path / "out", poses="gt", priors=priors, config_file=str(tiny_config),
                              iters=4, source_opts=opts))
     _, poses = read_tum(out / od.TRAJECTORY_FILE)
     gt = np.stack([f.gt_pose for f in open_source(src, opts)])
@@ -34,4 +34,4 @@ def test_map_with_known_poses_fuses_a_monocular_prior_like_the_slam(tmp_path, ti
 
 def test_map_refuses_stereo_priors_in_one_line(tmp_path):
     with pytest.raises(UserError, match="needs the SLAM's poses"):
-        run_map(MapRequest(source="synthetic:room?frames=4", out_dir=tmp_path / "out", priors="stereo"))
+        run_map(MapRequest(source="synthetic:room?frames=4", out_dir=tmp_path / "out", poses="gt", priors="stereo"))

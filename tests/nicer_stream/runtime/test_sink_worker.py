@@ -89,7 +89,7 @@ def test_live_updates_overtaken_in_the_queue_are_skipped_and_the_newest_is_logge
 
 def test_without_a_spare_core_live_renders_run_on_the_slam_thread_and_logging_on_the_worker(monkeypatch):
     import nicer_stream.runtime.live_outputs as lo
-    import nicer_stream.runtime.slam_run as sr
+    import nicer_stream.runtime.thread_plan as sr
     from nicer_stream.types import Intrinsics
 
     monkeypatch.setattr(sr, "available_cores", lambda: 2)

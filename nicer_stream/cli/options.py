@@ -1,0 +1,139 @@
+"""The options `run`, `map` and `batch` share: each defined once (flag, default, help), and the
+checks of their values, made before anything is read or written (one line naming the flag and
+the accepted range, exit 2)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import typer
+
+from nicer_stream.cli.common import DROP_HELP, parse_drop, parse_intrinsics
+from nicer_stream.errors import UserError
+
+MIN_SIDE = 32
+"""The smallest --max-side: below a few tens of pixels the flow and the frontend have nothing to match."""
+
+SOURCE_HELP = ("Source URI: replica:PATH, tum:PATH, 7scenes:PATH, folder:PATH, video:FILE, mcap:FILE[?topic=T], "
+               "synthetic:NAME (e.g. synthetic:room?frames=40).")
+PRESET = typer.Option("fast", "--preset", help="Config preset: fast (2-core CPU) or paper.")
+CONFIG = typer.Option(None, "--config", help="A .toml/.json file overriding preset fields.")
+FLOW = typer.Option(None, "--flow", help="Flow prior: dis, oracle (GT, evaluation only), none, cache:DIR "
+                                         "(default: oracle with oracle:clean priors, else dis).")
+DEVICE = typer.Option("cpu", "--device", help="torch device, e.g. cpu, cuda or cuda:1.")
+MAX_FRAMES = typer.Option(None, "--max-frames", help="Stop after N frames (counted after --start, --stride and --drop).")
+STRIDE = typer.Option(1, "--stride", help="Keep every N-th input frame.")
+START = typer.Option(0, "--start", help="Skip the first N input frames.")
+DROP = typer.Option(None, "--drop", help=DROP_HELP)
+MAX_SIDE = typer.Option(None, "--max-side", help=f"Resize so the longer side is at most N pixels, N >= {MIN_SIDE} "
+                                                 "(default: the preset's).")
+INTRINSICS = typer.Option(None, "--intrinsics", help="fx,fy,cx,cy in pixels at the original image size "
+                                                     "(fx, fy > 0), instead of the source's.")
+SINK = typer.Option([], "--sink", help="rerun (viewer), rerun:FILE.rrd, mcap:FILE.mcap; repeatable. A bare 'rerun' "
+                                       "with no viewer writes OUT/recording.rrd.")
+RENDER_EVERY = typer.Option(10, "--render-every", help="Render (and evaluate) every N-th frame at the end, N >= 1; "
+                                                       "their images are kept until then.")
+
+
+@dataclass(frozen=True)
+class SourceFlags:
+    """The flags choosing a source's frames, as typed; `options()` checks them."""
+
+    start: int = 0
+    """--start: input frames skipped first."""
+    stride: int = 1
+    """--stride: every N-th input frame is kept."""
+    drop: str | None = None
+    """--drop A:B: input frames A..B-1 dropped."""
+    max_frames: int | None = None
+    """--max-frames: stop after this many kept frames."""
+    max_side: int | None = None
+    """--max-side: the longer image side at most this many pixels."""
+    intrinsics: str | None = None
+    """--intrinsics fx,fy,cx,cy at the original image size."""
+
+    def options(self):
+        """The checked `SourceOptions`; a value out of range is a one-line UserError naming its flag."""
+        from sources.base import SourceOptions
+
+        if self.max_side is not None and self.max_side < MIN_SIDE:
+            raise UserError(f"--max-side must be an integer >= {MIN_SIDE} (pixels), got {self.max_side}")
+        intr = parse_intrinsics(self.intrinsics)
+        if intr is not None and not (all(map(math.isfinite, intr)) and intr[0] > 0 and intr[1] > 0):
+            raise UserError(f"--intrinsics must be fx,fy,cx,cy with fx, fy > 0 and cx, cy finite (pixels), "
+                            f"got '{self.intrinsics}'")
+        return SourceOptions(start=self.start, stride=self.stride, drop=parse_drop(self.drop),
+                             max_frames=self.max_frames, max_side=self.max_side, intrinsics=intr)
+
+
+def check_device(device: str) -> str:
+    """`device` if torch can parse it, else a one-line UserError."""
+    import torch
+
+    try:
+        torch.device(device)
+    except (RuntimeError, ValueError):
+        raise UserError(f"--device must be a torch device such as cpu, cuda or cuda:0, got '{device}'") from None
+    return device
+
+
+def at_least(flag: str, value: float | None, low: float, note: str = "") -> None:
+    """A one-line UserError unless `value` is None or >= `low`."""
+    if value is not None and value < low:
+        raise UserError(f"{flag} must be >= {low}{note}, got {value}")
+
+
+@dataclass(frozen=True)
+class RunFlags:
+    """The options of a SLAM run that `run` and `batch` share, as typed; `request()` checks them."""
+
+    preset: str = "fast"
+    """--preset."""
+    config: str | None = None
+    """--config: a .toml/.json file overriding preset fields."""
+    priors: str = "auto"
+    """--priors: the depth / normal prior provider."""
+    flow: str | None = None
+    """--flow: the flow prior provider."""
+    device: str = "cpu"
+    """--device."""
+    sinks: tuple[str, ...] = ()
+    """--sink specs, as given."""
+    render_every: int = 10
+    """--render-every."""
+    max_renders: int = 20
+    """--max-renders (0: no cap)."""
+    realtime: bool = False
+    """--realtime."""
+    quiet: bool = False
+    """--quiet."""
+    live_mesh_every: int = 5
+    """--live-mesh-every (0: only the final mesh)."""
+    log_images_every: int = 10
+    """--log-images-every."""
+    log_image_side: int = 320
+    """--log-image-side (0: as read)."""
+    sync: bool = False
+    """--sync."""
+    mapping_worker: str = "auto"
+    """--mapping-worker: auto, on or off."""
+
+    def request(self, source: str, out, source_opts):
+        """The checked `RunRequest` of a run of `source` into `out`."""
+        from pathlib import Path
+
+        from nicer_stream.cli.sink_specs import resolve_sinks
+        from nicer_stream.runtime.slam_run import RunRequest
+
+        if self.render_every < 1 or self.max_renders < 0:
+            raise UserError(f"--render-every must be at least 1 and --max-renders at least 0 (0: no cap), "
+                            f"got {self.render_every} and {self.max_renders}")
+        at_least("--live-mesh-every", self.live_mesh_every, 0, " (0: only the final mesh)")
+        if self.mapping_worker not in ("auto", "on", "off"):
+            raise UserError(f"--mapping-worker must be auto, on or off, got {self.mapping_worker!r}")
+        return RunRequest(source=source, out_dir=Path(out), priors=self.priors, flow=self.flow, preset=self.preset,
+                          config_file=self.config, sinks=resolve_sinks(list(self.sinks), Path(out), self.log_images_every,
+                                                                       self.log_image_side),
+                          device=check_device(self.device), realtime=self.realtime, render_every=self.render_every,
+                          max_renders=self.max_renders, live_mesh_every=self.live_mesh_every, quiet=self.quiet,
+                          sync=self.sync, mapping_worker=self.mapping_worker, source_opts=source_opts)
