@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from nicer_stream.runtime.frame_priors import make_engine, map_frame
-from nicer_stream.slam.system import first_scale_shift
+from nicer_stream.slam.first_map import first_scale_shift
 from nicer_stream.slam.two_view import two_view_init
 from sources import open_source
 from sources.base import SourceOptions

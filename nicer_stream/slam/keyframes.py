@@ -1,97 +1,121 @@
-"""Which frames become keyframes: by what the camera saw, not by frame count. A frame is a
-keyframe when the view has changed since the last keyframe (few of its landmarks still in view,
-or a baseline / rotation that is a fair share of the scene), or when `max_gap_s` seconds have
-passed (a camera that never stops changing slowly); so the same scene at 30 Hz and at 10 Hz
-gives a similar set. Each decision carries its reason (`summary.json`).
+"""Which frames become keyframes and which start mapping calls, and how the frames are stored.
 
-In view means projected inside the image in front of the camera: which keypoints a real frame's
-detector finds again is too noisy a measure (half of them are not matched in the next frame)."""
+Keyframes: every `keyframe_every`-th frame in input order, or (`keyframes = 'view'`) each frame
+whose view has changed enough since the last keyframe (`view_change.py`). A frame whose pose is
+not trusted never becomes one; with keyframe-only refinement its slot passes to the next frame,
+else the map would go a whole interval without a keyframe. Mapping calls: every `mapping.every`
+frames, or at each view keyframe. Memory: the stored frames are the keyframes, the first frame
+and the latest one; keyframes older than the newest `full_res_keyframes` are kept at half
+resolution."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+import logging
 
 import numpy as np
+import torch
 
-from nicer_stream.frontend.health import pose_step
-from nicer_stream.geometry.camera import project_world as project
-from nicer_stream.types import Intrinsics
+from nicer_stream.config import SlamConfig
+from nicer_stream.mapping.map_frame import MapFrame
+from nicer_stream.slam.events import Event, KeyframeAdded
+from nicer_stream.slam.frontend_link import FrontendLink
+from nicer_stream.slam.state import SlamState
+from nicer_stream.slam.view_change import KeyframeRule, KeyframeSelector
 
-
-@dataclass(frozen=True)
-class ViewChange:
-    """How far a frame's view is from the last keyframe's: the share of that keyframe's landmarks
-    still in view, the baseline over the scene's median depth, the rotation in degrees, seconds."""
-
-    overlap: float
-    baseline: float
-    rotation_deg: float
-    gap_s: float
+log = logging.getLogger(__name__)
 
 
-def in_view(points: np.ndarray, T: np.ndarray, intr: Intrinsics) -> np.ndarray:
-    """(N,) bool: world points (N, 3) in front of the camera at T_world_cam (4, 4) and inside its image."""
-    uv, z = project(T, points, intr)
-    return (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= intr.width - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= intr.height - 1)
+class KeyframePolicy:
+    def __init__(self, cfg: SlamConfig, state: SlamState, front: FrontendLink) -> None:
+        self.cfg, self.state, self.front = cfg, state, front
+        m = cfg.mapping
+        self.view = KeyframeSelector(KeyframeRule(
+            m.keyframe_min_overlap, m.keyframe_max_baseline, m.keyframe_max_rotation_deg,
+            m.keyframe_max_gap_s)) if m.keyframes == "view" else None
+        self.decided: dict[int, str | None] = {}  # view keyframes: decided, not yet taken
+        self.owed = False  # a keyframe slot's frame failed its check (`tracking.refine`)
+        self.halved: set[int] = set()  # keyframes kept at half resolution
 
+    def slot(self, n: int) -> bool:
+        """True when the n-th frame in order (1-based) is due to become a keyframe by count."""
+        return n % self.cfg.mapping.keyframe_every == 1 or self.cfg.mapping.keyframe_every == 1
 
-def view_change(points_kf: np.ndarray, T_kf: np.ndarray, t_kf: float, T: np.ndarray, t: float, depth: float,
-                intr: Intrinsics) -> ViewChange:
-    """The change from the keyframe (its landmarks (M, 3) world, T_world_cam (4, 4), timestamp) to
-    a frame at T (timestamp t); `depth`: the scene's median depth in the poses' unit."""
-    overlap = float(in_view(points_kf, T, intr).mean()) if len(points_kf) else 0.0
-    dist, angle = pose_step(T_kf, T)
-    baseline = dist / depth if depth > 0 else 0.0
-    return ViewChange(overlap, baseline, angle, t - t_kf)
+    def due(self, n: int, index: int) -> bool:
+        """True when frame `index`, the n-th in order, is a keyframe slot (or, with view keyframes,
+        its view has changed) or takes a failed slot's place."""
+        if self.view is not None:
+            return self.decided.get(index) is not None or self.owed
+        return self.slot(n) or self.owed
 
+    def mapping_slot(self, n: int) -> bool:
+        """True when the n-th frame in order (1-based) is due to start a mapping call by the
+        frame count (view keyframes: never; each keyframe starts one)."""
+        return self.view is None and n > 1 and (n - 1) % self.cfg.mapping.every == 0
 
-@dataclass(frozen=True)
-class KeyframeRule:
-    """The thresholds (`[mapping]` keyframe_* fields)."""
+    def decide(self, index: int, T: torch.Tensor | np.ndarray, timestamp: float, depth: float | None) -> None:
+        """View keyframes: whether frame `index` (its pose estimate T, the scene's median depth or
+        None) has seen enough change since the last keyframe; the reason is kept."""
+        if self.view is None:
+            return
+        depth = depth or self.front.scene_depth
+        T = T.double().cpu().numpy() if isinstance(T, torch.Tensor) else T
+        self.decided[index] = self.view.decide(T, timestamp, depth, self.front.intr)
 
-    min_overlap: float = 0.6
-    max_baseline: float = 0.1
-    max_rotation_deg: float = 15.0
-    max_gap_s: float = 1.0
-    min_gap_s: float = 0.0
+    def schedule(self, index: int, timestamp: float, trusted: bool) -> tuple[bool, bool]:
+        """(a keyframe is due, a mapping call is due) at frame `index`, just booked in order, whose
+        pose is `trusted` or not."""
+        if self.view is not None and index not in self.decided:  # not tracked (the start, a replay)
+            self.decide(index, self.state.poses[index], timestamp, None)
+        n = len(self.state.order)
+        is_kf = self.due(n, index)
+        self.owed = is_kf and not trusted and self.cfg.tracking.refine == "keyframes"
+        return is_kf, self.mapping_slot(n) or (self.view is not None and is_kf and n > 1)
 
-    def reason(self, c: ViewChange) -> str | None:
-        """Why a frame with view change `c` is a keyframe, or None."""
-        if c.gap_s < self.min_gap_s:
-            return None
-        if c.overlap < self.min_overlap:
-            return f"{100 * c.overlap:.0f}% of the last keyframe's landmarks still in view"
-        if c.baseline > self.max_baseline:
-            return f"baseline {c.baseline:.2f} of the scene depth"
-        if c.rotation_deg > self.max_rotation_deg:
-            return f"rotated {c.rotation_deg:.0f} deg"
-        if c.gap_s >= self.max_gap_s:
-            return f"{c.gap_s:.1f} s since the last keyframe"
-        return None
+    def add(self, index: int, timestamp: float) -> list[Event]:
+        """Frame `index` becomes a keyframe (the first frame was made one when it was held)."""
+        events: list[Event] = []
+        if index not in self.state.keyframes:
+            self.state.keyframes.append(index)
+            events.append(KeyframeAdded(index))
+            self._cap()
+        self._taken(index, timestamp)
+        return events
 
+    def _taken(self, index: int, timestamp: float) -> None:
+        if self.view is None or index in self.view.reasons:
+            return
+        reason = self.decided.get(index) or "a failed keyframe's place"
+        log.info("frame %d: keyframe (%s)", index, reason)
+        self.view.taken(index, self.front.view_landmarks(index), self.state.poses[index].double().cpu().numpy(),
+                        timestamp, reason)
+        for k in [k for k in self.decided if k <= index]:
+            del self.decided[k]  # decided: bounded memory
 
-class KeyframeSelector:
-    """Remembers the last keyframe's view and decides for each new frame; `reasons` holds why
-    every keyframe was taken."""
+    def store(self, mf: MapFrame) -> None:
+        """Keep keyframes, the first and the latest frame; drop the previous non-keyframe."""
+        s = self.state
+        s.frames[mf.index] = mf
+        for k in list(s.frames):
+            if k != mf.index and k not in s.keyframes and k != s.order[0]:
+                del s.frames[k]
+        for f in s.frames.values():  # flows to dropped frames would pile up in keyframes
+            # (not to held frames the start replays next: their tracking starts from these flows)
+            for j in [j for j in f.flows if j not in s.frames and j not in s.replay]:
+                del f.flows[j]
 
-    def __init__(self, rule: KeyframeRule) -> None:
-        self.rule = rule
-        self.last: tuple[np.ndarray | None, np.ndarray, float] | None = None  # (landmarks, T_world_cam, timestamp)
-        self.reasons: dict[int, str] = {}
+    def _cap(self) -> None:
+        """Bounded memory: keyframes older than the newest `full_res_keyframes` at half resolution."""
+        cap, s = self.cfg.mapping.full_res_keyframes, self.state
+        if cap <= 0:
+            return
+        for k in s.keyframes[:-cap]:
+            if k != s.order[0] and k in s.frames and k not in self.halved:
+                s.frames[k] = s.frames[k].halved()
+                self.halved.add(k)
+                for f in s.frames.values():  # flows into it are in full-resolution pixels
+                    f.flows.pop(k, None)
 
-    def decide(self, T: np.ndarray, t: float, depth: float | None, intr: Intrinsics | None) -> str | None:
-        """Why a frame at T_world_cam `T`, timestamp `t` (the scene depth, or None; the intrinsics of
-        the image the landmarks are seen in) should be a keyframe, or None. Without landmarks or
-        depth, only the time cap."""
-        if self.last is None:
-            return "first frame"
-        points, T_kf, t_kf = self.last
-        if points is None or not len(points) or not depth or intr is None:
-            gap = t - t_kf
-            return f"{gap:.1f} s since the last keyframe" if gap >= self.rule.max_gap_s else None
-        return self.rule.reason(view_change(points, T_kf, t_kf, T, t, depth, intr))
-
-    def taken(self, index: int, points: np.ndarray | None, T: np.ndarray, t: float, reason: str) -> None:
-        """Frame `index` became a keyframe (for `reason`) with its landmarks `points` (M, 3) world
-        (None: none yet): later frames compare with it."""
-        self.last = (points, T, t)
-        self.reasons[index] = reason
+    def reasons(self) -> dict[str, str] | str:
+        """Why each keyframe was taken, for `summary.json`."""
+        if self.view is None:
+            return "every mapping.keyframe_every frames"
+        return {str(k): r for k, r in self.view.reasons.items()}

@@ -55,14 +55,14 @@ def test_tracking_goes_on_while_a_mapping_call_runs(tiny_config):
     cfg = load("fast", tiny_config)  # mapping every 2 frames
     ex, release, started = MappingThread(threads=1), threading.Event(), threading.Event()
     slam = SlamSystem(cfg, mapping=ex)
-    run_job = slam._run_job
+    run_job = slam.maps.run
 
     def held(job):  # the first scheduled call holds the worker until the test lets it go
         started.set()
         release.wait(30)
         return run_job(job)
 
-    slam._run_job = held
+    slam.maps.run = held
     frames = list(open_source("synthetic:room?frames=7", SourceOptions(max_side=32)))
     events = []
     for f in frames[:3]:  # frame 2 submits the call
@@ -74,7 +74,7 @@ def test_tracking_goes_on_while_a_mapping_call_runs(tiny_config):
     assert [e.index for e in events if isinstance(e, FrameTracked)] == [0, 1, 2, 3, 4]
     assert not any(isinstance(e, MapUpdated) and e.background for e in events)
     release.set()
-    slam._run_job = run_job
+    slam.maps.run = run_job
     assert ex.wait(60)  # the held call ends before frame 5: the deferred one then starts there
     for f in frames[5:]:
         events += slam.step(f.without_ground_truth())

@@ -165,7 +165,7 @@ def test_refine_keyframes_refines_the_last_frame_before_the_closing_call(cfg, mo
     for f in _frames(8):
         slam.step(f)
     last = slam.order[-1]
-    assert last in slam._unrefined, "the latest frame was refined online: nothing checked"
+    assert last in slam.state.unrefined, "the latest frame was refined online: nothing checked"
     before = slam.poses[last].clone()
     tracked = []
     real = Tracker.track
@@ -242,7 +242,7 @@ def test_a_rejected_refinement_before_the_closing_call_keeps_the_pose_and_report
     for f in _frames(8):
         slam.step(f)
     last = slam.order[-1]
-    assert last in slam._unrefined, "the latest frame was refined online: nothing checked"
+    assert last in slam.state.unrefined, "the latest frame was refined online: nothing checked"
     before = slam.poses[last].clone()
     real = Tracker.track
 
@@ -278,13 +278,13 @@ def test_the_last_frames_refinement_before_the_closing_call_passes_the_frontend_
         slam = SlamSystem(_refine_keyframes_without_checks(base))
         for f in _frames(8):
             slam.step(f)
-        slam.cfg = c  # the bounds under test, for the closing call's refinement
+        slam.tracking.cfg = c  # the bounds under test, for the closing call's refinement
         last = slam.order[-1]
-        assert last in slam._unrefined and last in slam._frontend_at, "nothing checked"
+        assert last in slam.state.unrefined and last in slam.state.frontend_at, "nothing checked"
         before = slam.poses[last].clone()
         with monkeypatch.context() as m:
             m.setattr(Tracker, "track", off)
-            again = [e for e in slam._refine_unrefined_last() if isinstance(e, FrameTracked)]
+            again = [e for e in slam.tracking.refine_last() if isinstance(e, FrameTracked)]
         kept.append((torch.equal(slam.poses[last], before), len(again)))
     assert kept == [(True, 0), (False, 1)], kept
 

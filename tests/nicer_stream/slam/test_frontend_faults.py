@@ -70,7 +70,7 @@ def test_a_faulty_frontend_is_reported_and_not_trusted(cfg, monkeypatch, kind):
     # From the report on, no frame silently keeps the faulty pose: the map's pose, or lost.
     for i in range(faults[0].index, len(frames)):
         if i in returned and i >= FAULT_FROM and i not in slam.lost_frames:
-            assert i in slam._distrusted, f"frame {i} kept the faulty pose without a check"
+            assert i in slam.front.distrusted, f"frame {i} kept the faulty pose without a check"
     # ... and handed to the sinks as an event (Rerun's text log, MCAP's /tracking/warnings)
     assert any(w.index == faults[0].index and w.kind == f"frontend {faults[0].kind}" for w in warned), warned
     summary = slam.health_summary()

@@ -4,7 +4,7 @@ at 10 Hz gives keyframes at nearly the same times. The landmarks are a random cl
 import numpy as np
 
 from nicer_stream.geometry.camera import project_world as project
-from nicer_stream.slam.keyframes import KeyframeRule, KeyframeSelector, view_change
+from nicer_stream.slam.view_change import KeyframeRule, KeyframeSelector, view_change
 from nicer_stream.types import Intrinsics
 
 INTR = Intrinsics(300.0, 300.0, 160.0, 120.0, 320, 240)

@@ -105,7 +105,9 @@ def test_frames_held_for_a_rejected_start_are_tracked_from_their_flows(tiny_conf
     the flows into them (flow PnP): storing the first frame must not drop those flows."""
     from dataclasses import replace
 
-    import nicer_stream.slam.system as system
+    import nicer_stream.slam.startup as startup
+    import nicer_stream.slam.tracking_policy as tracking_policy
+    from nicer_stream.slam.system import SlamSystem
     from nicer_stream.config import load
     from nicer_stream.runtime.prior_stage import PriorStage
     from nicer_stream.slam.events import KeyframeAdded
@@ -113,17 +115,17 @@ def test_frames_held_for_a_rejected_start_are_tracked_from_their_flows(tiny_conf
     cfg = load("fast", tiny_config)
     cfg = replace(cfg, max_side=64, mapping=replace(cfg.mapping, init="two_view", init_frames=3),
                   tracking=replace(cfg.tracking, init="flow"))
-    monkeypatch.setattr(system, "two_view_init", lambda *a, **k: None)
+    monkeypatch.setattr(startup, "two_view_init", lambda *a, **k: None)
     sources = {}
-    real = system.pose_from_flows
+    real = tracking_policy.pose_from_flows
 
     def counting(srcs, dst, *a, **k):
         sources[dst.index] = len(srcs)
         return real(srcs, dst, *a, **k)
 
-    monkeypatch.setattr(system, "pose_from_flows", counting)
+    monkeypatch.setattr(tracking_policy, "pose_from_flows", counting)
     stage = PriorStage(PriorEngine(OracleDepthNormal(corruption=OracleCorruption.clean()), OracleFlow()))
-    slam = system.SlamSystem(cfg)
+    slam = SlamSystem(cfg)
     seen = {}
     for f in open_source("synthetic:room?frames=40", SourceOptions(max_side=64, max_frames=5)):
         seen[f.index] = f
@@ -138,7 +140,7 @@ def test_a_start_far_from_the_normal_prior_start_is_rejected_with_dis_flow_not_w
     """Replica frames 0 and 10 (10 cm apart): with DIS flow the realistic oracle's two-view depth
     is ~6% of the median from the normal prior's start (its shift 20% off GT, the normals' 5%):
     rejected; with exact flow and the clean oracle they agree to ~1%: kept."""
-    from nicer_stream.slam.system import first_scale_shift
+    from nicer_stream.slam.first_map import first_scale_shift
     from nicer_stream.slam.two_view import target_disagreement
 
     frames = list(open_source(f"replica:{replica_dir}", SourceOptions(max_side=320, max_frames=11)))

@@ -3,7 +3,7 @@ loss at each pose, then the agreement with the constant-velocity motion; neither
 import torch
 
 from nicer_stream.geometry.se3 import se3_exp
-from nicer_stream.slam.tracking_policy import DisagreementStreaks, judge_disagreement
+from nicer_stream.slam.disagreement import DisagreementStreaks, judge_disagreement
 
 
 def T(x: float) -> torch.Tensor:
