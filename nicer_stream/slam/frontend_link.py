@@ -96,7 +96,8 @@ class FrontendLink:
             return self.frontend.two_view(first, index, median_m, fallback=fallback)
 
     def pin(self, indices: set[int]) -> None:
-        """Frames bundle adjustment must not move (the held first view before the start)."""
+        """Frames whose observations outlive the frontend's window (the held first view of a start
+        still waiting for its second)."""
         if self.frontend is not None:
             self.frontend.pinned = indices
 
