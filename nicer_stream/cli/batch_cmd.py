@@ -7,7 +7,6 @@ import typer
 
 from nicer_stream.cli import options as o
 from nicer_stream.cli.common import user_errors
-from nicer_stream.cli.run_cmd import PRIORS_HELP
 from nicer_stream.errors import UserError
 
 
@@ -16,7 +15,7 @@ def batch_command(
     out: Path = typer.Option(..., "--out", help="Root directory: ROOT/<name>/ per source, ROOT/batch.json."),
     preset: str = o.PRESET,
     config: str = typer.Option(None, "--config", help="A .toml/.json file overriding preset fields, for every run."),
-    priors: str = typer.Option("auto", "--priors", help=PRIORS_HELP),
+    priors: str = o.PRIORS,
     flow: str = o.FLOW,
     sink: list[str] = typer.Option([], "--sink", help="rerun:FILE.rrd, mcap:FILE.mcap; repeatable. Each source writes FILE in its own ROOT/<name>/."),
     max_frames: int = o.MAX_FRAMES,

@@ -16,6 +16,10 @@ MIN_SIDE = 32
 
 SOURCE_HELP = ("Source URI: replica:PATH, tum:PATH, 7scenes:PATH, folder:PATH, video:FILE, mcap:FILE[?topic=T], "
                "synthetic:NAME (e.g. synthetic:room?frames=40).")
+PRIORS = typer.Option("auto", "--priors", help=(
+    "Depth/normal priors: auto (learned weights if present, else stereo), stereo, none, oracle (GT with a "
+    "monocular network's errors, evaluation only), oracle:clean (near GT, debugging), cache:DIR, omnidata, "
+    "depth-anything."))
 PRESET = typer.Option("fast", "--preset", help="Config preset: fast (2-core CPU) or paper.")
 CONFIG = typer.Option(None, "--config", help="A .toml/.json file overriding preset fields.")
 FLOW = typer.Option(None, "--flow", help="Flow prior: dis, oracle (GT, evaluation only), none, cache:DIR "

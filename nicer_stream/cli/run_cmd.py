@@ -8,17 +8,13 @@ import typer
 from nicer_stream.cli import options as o
 from nicer_stream.cli.common import user_errors
 
-PRIORS_HELP = ("Depth/normal priors: auto (learned weights if present, else stereo), stereo, none, oracle (GT with a "
-               "monocular network's errors, evaluation only), oracle:clean (near GT, debugging), cache:DIR, omnidata, "
-               "depth-anything.")
-
 
 def run_command(
     source: str = typer.Option(..., "--source", help=o.SOURCE_HELP),
     out: Path = typer.Option(Path("runs/latest"), "--out", help="Output directory."),
     preset: str = o.PRESET,
     config: str = o.CONFIG,
-    priors: str = typer.Option("auto", "--priors", help=PRIORS_HELP),
+    priors: str = o.PRIORS,
     flow: str = o.FLOW,
     sink: list[str] = o.SINK,
     max_frames: int = o.MAX_FRAMES,
