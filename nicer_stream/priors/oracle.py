@@ -16,14 +16,14 @@ alignment (depth) or as raw angles (normals):
 - Depth AbsRel 0.08-0.11 on NYUv2 zero-shot for DPT / MiDaS v3 (Ranftl et al., "Vision
   Transformers for Dense Prediction", ICCV 2021, Table 1; Eftekhar et al., "Omnidata",
   ICCV 2021 reports the same class of errors). Here: a field of 12% std over 0.25 m of the
-  scene (clipped at 2.5 std) plus 2% noise gives AbsRel 0.087-0.101 on the Replica clip and
-  the synthetic room over seeds 0-2 (`tests/nicer_stream/priors/test_oracle.py` checks the range).
+  scene (clipped at 2.5 std) plus 2% noise, inside that range on the Replica clip and the
+  synthetic room (`tests/nicer_stream/priors/test_oracle.py` checks it; docs/decisions.md).
 - Depth edges: those networks predict at 384 px and are upsampled: discontinuities blur
   over a few pixels of the input (sigma 0.8% of the image width here: 2.6 px at 320 px).
 - Normals: mean angular error 15-20 degrees on NYUv2 / ScanNet for Omnidata's normal model
   (Eftekhar et al. 2021; Bae et al., "Estimating and Exploiting the Aleatoric Uncertainty in
-  Surface Normal Estimation", ICCV 2021, Table 1: 14.9-20 deg); here 16-17.5 degrees on the
-  Replica clip, 12.5-14 on the synthetic room (measured by the same test).
+  Surface Normal Estimation", ICCV 2021, Table 1: 14.9-20 deg); here of that order (the same
+  test; docs/decisions.md).
 """
 from __future__ import annotations
 

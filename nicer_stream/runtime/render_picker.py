@@ -4,8 +4,7 @@ Every `every`-th frame index, as long as at most `max_views` are kept; beyond th
 doubles and every other kept frame is let go, so a long log ends with between `max_views` / 2 and
 `max_views` renders spread evenly over it (the runner adds the last frame), and holds no more of
 their images until then. The stream's length is not known in advance. Without the cap the end of a
-run grew with its length: 300 synthetic frames at `fast` rendered 31 views at ~4.5 s each (172 s of
-an 831 s run, docs/performance.md).
+run grew with its length (docs/performance.md).
 """
 from __future__ import annotations
 
