@@ -12,7 +12,7 @@ from nicer_stream.errors import UserError
 
 # Ranges beyond "a number >= 0", which every int and float setting must be.
 FRACTIONS = {"fine_start", "ba_start", "final_color_start", "batch_color_start", "keyframe_min_overlap",
-             "evidence_ratio", "fill_min_inliers", "min_ncc", "final_lr_end_factor"}
+             "evidence_ratio", "fill_min_inliers", "min_ncc", "final_lr_end_factor", "map_landmark_opacity"}
 POSITIVE = {"max_side", "fusion_max_side", "rays", "chunk_rays", "resolution", "beta_voxels", "lr", "half_extent",
             "coarse_res", "fine_res_min", "fine_res_max", "color_res_min", "color_res_max", "window", "corners"}
 SIGNED = {"centre"}

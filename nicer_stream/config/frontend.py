@@ -65,6 +65,14 @@ class FrontendConfig(Checked):
     rescaled about that frame so its two oldest frames keep their distance (`hold_scale`)."""
     ba_iters: int = 10
     """Its Levenberg-Marquardt iterations at most."""
+    map_landmarks_below: int = 90
+    """A trusted frame seeing fewer landmarks than this gets landmarks for its other tracks from
+    the map's rendered depth (0: never; `ClassicalFrontend.seed_landmarks`)."""
+    map_landmark_parallax_deg: float = 2.0
+    """Such a landmark counts as triangulated with this parallax (a baseline giving
+    `retriangulate_gain` times it triangulates the track again)."""
+    map_landmark_opacity: float = 0.9
+    """... and comes only from rays the map renders at least this opaque."""
     max_disagreement_depth_frac: float = 0.005
     """Photometric and frontend poses further apart than this fraction of the landmarks' median depth
     (or `max_disagreement_frac` of the motion, if larger) are a tracking loss."""

@@ -6,6 +6,7 @@ frame and scale (the landmarks come from its poses, so PnP answers in the same s
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -151,6 +152,29 @@ class ClassicalFrontend:
         has = np.array([i in self.landmarks for i in ids.tolist()], bool)
         X = np.stack([self.landmarks[i] for i in ids[has].tolist()]) if has.any() else np.zeros((0, 3))
         return uv[has], X
+
+    def seed_landmarks(self, index: int, depth_at: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> int:
+        """Landmarks from the map's depth for trusted frame `index`'s tracks that have none, when it
+        sees fewer than `map_landmarks_below`: `depth_at(T_world_cam (4, 4), uv (N, 2))` gives their
+        z-depth (N,) at its pose, nan where the map does not know. Why: a turning camera outruns
+        triangulation (no parallax) and loses its landmarks within frames; the map saw those places.
+        They count as triangulated with `map_landmark_parallax_deg`, so a wider baseline replaces
+        them. Returns how many were added."""
+        ids, uv = self.obs.get(index, (np.zeros(0, np.int64), np.zeros((0, 2))))
+        has = np.array([i in self.landmarks for i in ids.tolist()], bool)
+        if index not in self.poses or has.sum() >= self.cfg.map_landmarks_below or has.all():
+            return 0
+        T = self.poses[index]
+        z = depth_at(T, uv[~has])
+        ok = np.isfinite(z) & (z > 0)
+        if not ok.any():
+            return 0
+        uv_n = (uv[~has][ok] - [self.intr.cx, self.intr.cy]) / [self.intr.fx, self.intr.fy]
+        X_cam = np.concatenate([uv_n, np.ones((len(uv_n), 1))], 1) * z[ok, None]
+        for t, x in zip(ids[~has][ok].tolist(), X_cam @ T[:3, :3].T + T[:3, 3]):
+            self.landmarks[t] = x
+            self.parallax[t] = self.cfg.map_landmark_parallax_deg
+        return int(ok.sum())
 
     def common_tracks(self, a: int, b: int) -> int:
         """How many tracks observed frames `a` and `b` share (0 when either is not observed)."""

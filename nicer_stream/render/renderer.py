@@ -128,6 +128,22 @@ def rays_for_pixels(uv: torch.Tensor, intr: Intrinsics, T_world_cam: torch.Tenso
     return RayBatch(o, d, zpd)
 
 
+@torch.no_grad()
+def depth_at_pixels(model: SceneModel, beta: BetaField, cfg: RenderConfig, T_world_cam: np.ndarray,
+                    intr: Intrinsics, uv: np.ndarray, min_opacity: float) -> np.ndarray:
+    """The map's z-depth (N,) float64 at pixels `uv` (N, 2) of a camera at T_world_cam (4, 4);
+    nan where the ray is less than `min_opacity` opaque (the map has not seen it)."""
+    dev = next(model.parameters()).device
+    T = torch.as_tensor(T_world_cam, dtype=torch.float32, device=dev)
+    out = [render_rays(model, beta, rays_for_pixels(torch.as_tensor(uv[i:i + cfg.chunk_rays], dtype=torch.float32,
+                                                                   device=dev), intr, T),
+                       cfg, jitter=False, depth_only=True) for i in range(0, len(uv), cfg.chunk_rays)]
+    if not out:
+        return np.zeros(0)
+    z, a = torch.cat([o.depth for o in out]), torch.cat([o.opacity for o in out])
+    return torch.where(a >= min_opacity, z, torch.nan).double().cpu().numpy()
+
+
 @dataclass
 class RenderedImage:
     """A whole view: rgb (H, W, 3) [0,1], depth (H, W) z-depth m, normal (H, W, 3) camera frame, opacity (H, W)."""

@@ -12,7 +12,9 @@ import numpy as np
 import torch
 
 from nicer_stream.frontend.frontend import ClassicalFrontend, FrontendPose, TwoViewTracks
+from nicer_stream.config import RenderConfig
 from nicer_stream.frontend.health import FrontendHealth
+from nicer_stream.render.renderer import depth_at_pixels
 from nicer_stream.slam.events import TrackingWarning
 from nicer_stream.slam.state import SlamState
 from nicer_stream.types import Frame, Intrinsics
@@ -88,6 +90,19 @@ class FrontendLink:
         if self.frontend is not None:
             with self.timer():
                 self.frontend.set_pose(index, T.double().cpu().numpy(), trusted, adopt=index in self.distrusted)
+
+    def seed_from_map(self, index: int, view: tuple, render: RenderConfig) -> None:
+        """Landmarks from the map `view` ((model, beta), `map_view()`) for trusted frame `index`'s
+        tracks that have none, when it sees few (`ClassicalFrontend.seed_landmarks`)."""
+        if self.frontend is None or self.frontend.cfg.map_landmarks_below <= 0:
+            return
+        model, beta = view
+        opacity = self.frontend.cfg.map_landmark_opacity
+        with self.timer():
+            n = self.frontend.seed_landmarks(index, lambda T, uv: depth_at_pixels(model, beta, render, T,
+                                                                                 self.frontend.intr, uv, opacity))
+        if n:
+            log.info("frame %d: %d landmarks from the map's depth", index, n)
 
     def two_view(self, first: int, index: int, median_m: float, fallback: bool = False) -> TwoViewTracks | None:
         if self.frontend is None:

@@ -172,6 +172,8 @@ class SlamSystem:
         trusted = i not in s.lost_frames
         is_kf, maps = self.keyframing.schedule(i, frame.timestamp, trusted)
         self.front.set_pose(i, s.poses[i], self.tracking.frontend_trusts(i))
+        if s.model is not None:  # a frame the frontend does not trust is left alone by it
+            self.front.seed_from_map(i, self.map_view(), self.cfg.render)
         if is_kf or maps or self.maps.due:  # its flows are needed (before any keyframe is halved:
             s.attach_deferred(s.frames[i])  # flows into those are dropped)
         events = self.keyframing.add(i, frame.timestamp) if is_kf and trusted else []

@@ -206,3 +206,33 @@ def test_a_pinned_frame_outlives_the_window():
         fe.observe(f.index, f.rgb, f.intrinsics)
         fe.pinned = {0}
     assert sorted(fe.obs) == [0, 5, 6, 7, 8]
+
+
+def test_landmarks_seeded_from_depth_place_a_frame_that_triangulation_cannot():
+    """One posed frame and no second: no landmark can be triangulated, so a later frame gets no
+    pose. Seeded from the first frame's depth (here the scene's own), its tracks become landmarks
+    at the right places and PnP places the later frame."""
+    src = list(open_source("synthetic:room?frames=120", SourceOptions(max_frames=4)))
+    fe = ClassicalFrontend(FrontendConfig(corners=400))
+    for f in src[:3]:
+        fe.observe(f.index, f.rgb, f.intrinsics)
+    fe.set_pose(0, src[0].gt_pose)
+    assert fe.estimate(2, src[0].gt_pose) is None
+
+    def depth_at(T, uv):
+        assert np.array_equal(T, src[0].gt_pose)
+        z = src[0].gt_depth[np.round(uv[:, 1]).astype(int), np.round(uv[:, 0]).astype(int)].astype(float)
+        z[::7] = np.nan  # where the map does not know
+        return z
+
+    n = fe.seed_landmarks(0, depth_at)
+    assert n > 100 and len(fe.landmarks) == n
+    uv, X = fe.landmark_observations(0)
+    T_cam_world = np.linalg.inv(src[0].gt_pose)
+    Xc = X @ T_cam_world[:3, :3].T + T_cam_world[:3, 3]
+    intr = src[0].intrinsics
+    assert np.allclose(Xc[:, 0] / Xc[:, 2] * intr.fx + intr.cx, uv[:, 0], atol=1e-6)
+    assert fe.seed_landmarks(0, depth_at) == 0  # nothing new to seed: no track lacks one it can get
+    est = fe.estimate(2, src[0].gt_pose)
+    assert est is not None
+    assert _err(src[2].gt_pose, est.T_world_cam)[0] < 0.02

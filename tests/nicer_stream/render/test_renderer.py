@@ -277,3 +277,15 @@ def test_rendering_only_the_live_samples_keeps_the_render_and_its_gradients():
         torch.testing.assert_close(a, b, atol=1e-3, rtol=1e-3)
     assert (g_live - g_ref).norm() < 2e-3 * g_ref.norm()
     assert (xi_live - xi_ref).norm() < 2e-3 * xi_ref.norm()
+
+
+def test_depth_at_pixels_is_the_image_depth_there_and_nan_where_not_opaque():
+    from nicer_stream.render.renderer import depth_at_pixels
+    model, beta = _model(), BetaField(RC)
+    T = _pose_at_centre()
+    img = render_image(model, beta, T, INTR, RC)
+    uv = np.array([[4.0, 3.0], [0.0, 0.0], [8.0, 6.0], [2.0, 5.0]])
+    z = depth_at_pixels(model, beta, RC, T.numpy(), INTR, uv, min_opacity=0.5)
+    assert np.allclose(z, img.depth[uv[:, 1].astype(int), uv[:, 0].astype(int)], rtol=1e-4)
+    assert np.isnan(depth_at_pixels(model, beta, RC, T.numpy(), INTR, uv, min_opacity=1.01)).all()
+    assert depth_at_pixels(model, beta, RC, T.numpy(), INTR, uv[:0], 0.5).shape == (0,)
