@@ -72,7 +72,13 @@ class FrontendConfig(Checked):
     """Such a landmark counts as triangulated with this parallax (a baseline giving
     `retriangulate_gain` times it triangulates the track again)."""
     map_landmark_opacity: float = 0.9
-    """... and comes only from rays the map renders at least this opaque."""
+    """... and comes only from rays the map renders at least this opaque ..."""
+    map_landmark_samples: float = 20.0
+    """... whose surface lies in a voxel that mapping sampled at least this many times (the
+    locally adaptive beta's counter): elsewhere the map is still its initial sphere."""
+    map_landmark_scale: float = 1.25
+    """Seeding needs the frame's own landmarks, where it has some, at most this factor deeper or
+    shallower than the map's depth (median)."""
     max_disagreement_depth_frac: float = 0.005
     """Photometric and frontend poses further apart than this fraction of the landmarks' median depth
     (or `max_disagreement_frac` of the motion, if larger) are a tracking loss."""

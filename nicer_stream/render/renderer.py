@@ -130,18 +130,22 @@ def rays_for_pixels(uv: torch.Tensor, intr: Intrinsics, T_world_cam: torch.Tenso
 
 @torch.no_grad()
 def depth_at_pixels(model: SceneModel, beta: BetaField, cfg: RenderConfig, T_world_cam: np.ndarray,
-                    intr: Intrinsics, uv: np.ndarray, min_opacity: float) -> np.ndarray:
+                    intr: Intrinsics, uv: np.ndarray, min_opacity: float, min_samples: float = 0.0) -> np.ndarray:
     """The map's z-depth (N,) float64 at pixels `uv` (N, 2) of a camera at T_world_cam (4, 4);
-    nan where the ray is less than `min_opacity` opaque (the map has not seen it)."""
+    nan where the ray is less than `min_opacity` opaque or its surface lies in a voxel that mapping
+    sampled fewer than `min_samples` times (`BetaField.counts`): places the map has not seen."""
     dev = next(model.parameters()).device
     T = torch.as_tensor(T_world_cam, dtype=torch.float32, device=dev)
-    out = [render_rays(model, beta, rays_for_pixels(torch.as_tensor(uv[i:i + cfg.chunk_rays], dtype=torch.float32,
-                                                                   device=dev), intr, T),
-                       cfg, jitter=False, depth_only=True) for i in range(0, len(uv), cfg.chunk_rays)]
-    if not out:
+    if len(uv) == 0:
         return np.zeros(0)
-    z, a = torch.cat([o.depth for o in out]), torch.cat([o.opacity for o in out])
-    return torch.where(a >= min_opacity, z, torch.nan).double().cpu().numpy()
+    rays = rays_for_pixels(torch.as_tensor(uv, dtype=torch.float32, device=dev), intr, T)
+    out = [render_rays(model, beta, RayBatch(rays.origins[i:i + cfg.chunk_rays], rays.dirs[i:i + cfg.chunk_rays],
+                                             rays.z_per_dist[i:i + cfg.chunk_rays]), cfg, jitter=False, depth_only=True)
+           for i in range(0, len(uv), cfg.chunk_rays)]
+    ray_dist, a = torch.cat([o.ray_dist for o in out]), torch.cat([o.opacity for o in out])
+    surface = model.bound.normalise(rays.origins + rays.dirs * ray_dist[:, None])
+    seen = beta.counts[beta.voxel_index(surface)] >= min_samples * beta.cfg.beta_count_weight
+    return torch.where((a >= min_opacity) & seen, ray_dist * rays.z_per_dist, torch.nan).double().cpu().numpy()
 
 
 @dataclass

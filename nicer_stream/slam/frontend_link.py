@@ -97,12 +97,14 @@ class FrontendLink:
         if self.frontend is None or self.frontend.cfg.map_landmarks_below <= 0:
             return
         model, beta = view
-        opacity = self.frontend.cfg.map_landmark_opacity
+        cfg = self.frontend.cfg
         with self.timer():
-            n = self.frontend.seed_landmarks(index, lambda T, uv: depth_at_pixels(model, beta, render, T,
-                                                                                 self.frontend.intr, uv, opacity))
+            n, ratio = self.frontend.seed_landmarks(index, lambda T, uv: depth_at_pixels(
+                model, beta, render, T, self.frontend.intr, uv, cfg.map_landmark_opacity, cfg.map_landmark_samples))
         if n:
-            log.info("frame %d: %d landmarks from the map's depth", index, n)
+            log.info("frame %d: %d landmarks from the map's depth (its own at %.2fx the map's)", index, n, ratio)
+        elif np.isfinite(ratio):
+            log.info("frame %d: no landmarks from the map: its own are %.2fx the map's depth", index, ratio)
 
     def two_view(self, first: int, index: int, median_m: float, fallback: bool = False) -> TwoViewTracks | None:
         if self.frontend is None:

@@ -225,14 +225,37 @@ def test_landmarks_seeded_from_depth_place_a_frame_that_triangulation_cannot():
         z[::7] = np.nan  # where the map does not know
         return z
 
-    n = fe.seed_landmarks(0, depth_at)
-    assert n > 100 and len(fe.landmarks) == n
+    n, ratio = fe.seed_landmarks(0, depth_at)
+    assert n > 100 and len(fe.landmarks) == n and np.isnan(ratio)  # none of its own to compare with
     uv, X = fe.landmark_observations(0)
     T_cam_world = np.linalg.inv(src[0].gt_pose)
     Xc = X @ T_cam_world[:3, :3].T + T_cam_world[:3, 3]
     intr = src[0].intrinsics
     assert np.allclose(Xc[:, 0] / Xc[:, 2] * intr.fx + intr.cx, uv[:, 0], atol=1e-6)
-    assert fe.seed_landmarks(0, depth_at) == 0  # nothing new to seed: no track lacks one it can get
+    assert fe.seed_landmarks(0, depth_at)[0] == 0  # enough landmarks now
     est = fe.estimate(2, src[0].gt_pose)
     assert est is not None
     assert _err(src[2].gt_pose, est.T_world_cam)[0] < 0.02
+
+
+def test_depth_that_disagrees_with_the_frames_own_landmarks_seeds_nothing():
+    """A frame with some landmarks of its own: a map depth twice theirs is a scale the frontend
+    does not share, and seeding from it would mix two scales."""
+    src = list(open_source("synthetic:room?frames=120", SourceOptions(max_frames=1)))
+    fe = ClassicalFrontend(FrontendConfig(corners=400, map_landmarks_below=10_000))
+    fe.observe(0, src[0].rgb, src[0].intrinsics)
+    fe.set_pose(0, src[0].gt_pose)
+
+    def depth_at(factor, every):
+        def f(T, uv):
+            z = src[0].gt_depth[np.round(uv[:, 1]).astype(int), np.round(uv[:, 0]).astype(int)].astype(float)
+            z[np.arange(len(z)) % every != 0] = np.nan
+            return z * factor
+        return f
+
+    n0 = fe.seed_landmarks(0, depth_at(1.0, 3))[0]  # a third of its tracks
+    assert n0 > 50
+    n, ratio = fe.seed_landmarks(0, depth_at(2.0, 1))
+    assert n == 0 and abs(ratio - 0.5) < 1e-6 and len(fe.landmarks) == n0
+    n, ratio = fe.seed_landmarks(0, depth_at(1.1, 1))  # within map_landmark_scale: the rest
+    assert n > 0 and abs(ratio - 1 / 1.1) < 1e-6 and len(fe.landmarks) == n0 + n

@@ -289,3 +289,10 @@ def test_depth_at_pixels_is_the_image_depth_there_and_nan_where_not_opaque():
     assert np.allclose(z, img.depth[uv[:, 1].astype(int), uv[:, 0].astype(int)], rtol=1e-4)
     assert np.isnan(depth_at_pixels(model, beta, RC, T.numpy(), INTR, uv, min_opacity=1.01)).all()
     assert depth_at_pixels(model, beta, RC, T.numpy(), INTR, uv[:0], 0.5).shape == (0,)
+    # Unmapped: the surface's voxels were never sampled by mapping, so nothing is known ...
+    assert np.isnan(depth_at_pixels(model, beta, RC, T.numpy(), INTR, uv, 0.5, min_samples=1)).all()
+    # ... until the samples of a ray through the centre pixel are counted.
+    out = render_rays(model, beta, rays_for_pixels(torch.tensor([[4.0, 3.0]]), INTR, T), RC, jitter=False)
+    beta.count(out.points.detach())
+    z = depth_at_pixels(model, beta, RC, T.numpy(), INTR, uv, 0.5, min_samples=1)
+    assert np.isfinite(z[0]) and np.isclose(z[0], img.depth[3, 4], rtol=1e-4) and np.isnan(z[1:]).all()
