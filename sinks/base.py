@@ -88,6 +88,16 @@ class Sink(ABC):
         self.close()
 
 
+def _forwarded(name: str):
+    """A Sink method that hands the call `name(*args, **kwargs)` to `self._forward`."""
+
+    def method(self, *args, **kwargs) -> None:
+        self._forward(name, *args, **kwargs)
+
+    method.__name__ = method.__qualname__ = name
+    return method
+
+
 class ForwardingSink(Sink):
     """A sink that hands every log call, by method name, to `_forward` (MultiSink: to several
     sinks; the runtime's SinkWorker: to a thread)."""
@@ -96,32 +106,15 @@ class ForwardingSink(Sink):
     def _forward(self, name: str, *args, **kwargs) -> None:
         """Make (or arrange) the call `name(*args, **kwargs)` on the wrapped sink(s)."""
 
-    def log_pose(self, *args, **kwargs) -> None:
-        self._forward("log_pose", *args, **kwargs)
-
-    def log_frame(self, *args, **kwargs) -> None:
-        self._forward("log_frame", *args, **kwargs)
-
-    def log_trajectory(self, *args, **kwargs) -> None:
-        self._forward("log_trajectory", *args, **kwargs)
-
-    def log_mesh(self, *args, **kwargs) -> None:
-        self._forward("log_mesh", *args, **kwargs)
-
-    def log_beta_voxels(self, *args, **kwargs) -> None:
-        self._forward("log_beta_voxels", *args, **kwargs)
-
-    def log_map_render(self, *args, **kwargs) -> None:
-        self._forward("log_map_render", *args, **kwargs)
-
-    def log_keyframes(self, *args, **kwargs) -> None:
-        self._forward("log_keyframes", *args, **kwargs)
-
-    def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
-        self._forward("log_scalars", index, values)
-
-    def log_warning(self, index: int, kind: str, message: str) -> None:
-        self._forward("log_warning", index, kind, message)
+    log_pose = _forwarded("log_pose")
+    log_frame = _forwarded("log_frame")
+    log_trajectory = _forwarded("log_trajectory")
+    log_mesh = _forwarded("log_mesh")
+    log_beta_voxels = _forwarded("log_beta_voxels")
+    log_map_render = _forwarded("log_map_render")
+    log_keyframes = _forwarded("log_keyframes")
+    log_scalars = _forwarded("log_scalars")
+    log_warning = _forwarded("log_warning")
 
 
 def pose_tq(T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
