@@ -37,7 +37,7 @@ from nicer_stream.errors import UserError
 from nicer_stream.geometry.camera import in_image, pixel_grid, project, unproject
 from nicer_stream.geometry.se3 import invert, transform_points
 from nicer_stream.priors.base import DepthNormal, DepthNormalProvider, FlowProvider
-from nicer_stream.geometry.depth_normals import fill_nearest, normals_from_depth, orient_towards_camera
+from nicer_stream.geometry.depth_normals import fill_nearest, normals_from_depth, orient_towards_camera, unproject_depth
 from nicer_stream.types import FlowPrior, Frame, Intrinsics
 
 _NEEDS_GT = (
@@ -111,11 +111,10 @@ def scene_field(points: np.ndarray, seed: int, stream: int, length_m: float, cha
 
 def world_points(depth: np.ndarray, intr: Intrinsics, T_world_cam: np.ndarray | None) -> np.ndarray:
     """(H, W) z-depth -> (H, W, 3) points in the world frame (the camera's without a pose)."""
-    uv = pixel_grid(intr, dtype=torch.float64)
-    p = unproject(uv, torch.from_numpy(depth.astype(np.float64)).reshape(-1), intr)
+    p = torch.from_numpy(unproject_depth(depth, intr))
     if T_world_cam is not None:
         p = transform_points(torch.from_numpy(np.asarray(T_world_cam, dtype=np.float64)), p)
-    return p.reshape(*depth.shape, 3).numpy()
+    return p.numpy()
 
 
 def fill_invalid_nearest(depth: np.ndarray) -> np.ndarray:
