@@ -189,12 +189,19 @@ def _read_json(path: Path) -> dict:
 
 
 def _build(cls, data: dict, path: Path):
-    """cls(**known keys of data); UserError naming the missing required keys."""
+    """cls(**known keys of data), the nested sections (`_NESTED`) built likewise; UserError naming
+    the missing required keys."""
     names = {f.name for f in fields(cls)}
+    known = {k: _build(_NESTED[k], v, path) if k in _NESTED and isinstance(v, dict) else v
+             for k, v in data.items() if k in names}
     try:
-        return cls(**{k: v for k, v in data.items() if k in names})
+        return cls(**known)
     except TypeError as e:
         raise UserError(f"{path}: {e} (missing or malformed keys): rewrite the file") from None
+
+
+_NESTED = {"stages_s": StageSeconds, "bound": Bound, "evaluated_views": EvaluatedViews, "mesh": MeshReport,
+           "mesh_pose_aligned": MeshReport, "heldout": HeldOutReport}
 
 
 def write_summary(out_dir: str | Path, summary: Summary) -> Path:
@@ -207,12 +214,7 @@ def write_summary(out_dir: str | Path, summary: Summary) -> Path:
 def read_summary(out_dir: str | Path) -> Summary:
     """Read OUT/summary.json (unknown keys ignored). Raises UserError if missing or malformed."""
     path = Path(out_dir) / SUMMARY_FILE
-    data = _read_json(path)
-    if isinstance(data.get("stages_s"), dict):
-        data["stages_s"] = _build(StageSeconds, data["stages_s"], path)
-    if isinstance(data.get("bound"), dict):
-        data["bound"] = _build(Bound, data["bound"], path)
-    return _build(Summary, data, path)
+    return _build(Summary, _read_json(path), path)
 
 
 def write_eval(out_dir: str | Path, report: EvalReport) -> Path:
@@ -225,12 +227,4 @@ def write_eval(out_dir: str | Path, report: EvalReport) -> Path:
 def read_eval(out_dir: str | Path) -> EvalReport:
     """Read OUT/eval.json. Raises UserError if missing or malformed."""
     path = Path(out_dir) / EVAL_FILE
-    data = _read_json(path)
-    if isinstance(data.get("evaluated_views"), dict):
-        data["evaluated_views"] = _build(EvaluatedViews, data["evaluated_views"], path)
-    for key in ("mesh", "mesh_pose_aligned"):
-        if isinstance(data.get(key), dict):
-            data[key] = _build(MeshReport, data[key], path)
-    if isinstance(data.get("heldout"), dict):
-        data["heldout"] = _build(HeldOutReport, data["heldout"], path)
-    return _build(EvalReport, data, path)
+    return _build(EvalReport, _read_json(path), path)
