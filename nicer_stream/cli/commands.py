@@ -1,18 +1,17 @@
 """Registers every sub-command on the typer app (modules import heavy deps lazily)."""
 from __future__ import annotations
 
+import importlib
+
 import typer
 
 
-
 def register(app: typer.Typer) -> None:
-    from nicer_stream.cli.run_cmd import run_command
+    def add(name: str, module: str, fn: str) -> None:  # the command function `fn` of nicer_stream.cli.`module`
+        app.command(name)(getattr(importlib.import_module(f"nicer_stream.cli.{module}"), fn))
 
-    app.command("run")(run_command)
-
-    from nicer_stream.cli.map_cmd import map_command
-
-    app.command("map")(map_command)
+    add("run", "run_cmd", "run_command")
+    add("map", "map_cmd", "map_command")
 
     @app.command("eval")
     def eval_(
@@ -33,17 +32,9 @@ def register(app: typer.Typer) -> None:
         drop_range = user_errors(parse_drop)(drop)
         user_errors(eval_command)(Path(outdir), source, max_side, stride, start, max_frames, drop_range)
 
-    from nicer_stream.cli.batch_cmd import batch_command
-
-    app.command("batch")(batch_command)
-
-    from nicer_stream.cli.render_cmd import render_command
-
-    app.command("render")(render_command)
-
-    from nicer_stream.cli.priors_cmd import priors
-
-    app.command("priors")(priors)
+    add("batch", "batch_cmd", "batch_command")
+    add("render", "render_cmd", "render_command")
+    add("priors", "priors_cmd", "priors")
 
     @app.command("convert")
     def convert(
