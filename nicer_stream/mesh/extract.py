@@ -36,10 +36,9 @@ def _vertex_colors(color_fn: ColorFn, mesh: trimesh.Trimesh, chunk: int, device)
     """(V, 3) uint8 colours of color_fn at the vertices with the mesh's vertex normals."""
     verts = torch.as_tensor(mesh.vertices, dtype=torch.float32, device=device)
     normals = torch.tensor(np.array(mesh.vertex_normals), dtype=torch.float32, device=device)
-    parts = []
     with torch.no_grad():
-        for s in range(0, len(verts), chunk):
-            parts.append(color_fn(verts[s : s + chunk], normals[s : s + chunk]).float().cpu())
+        parts = [color_fn(verts[s : s + chunk], normals[s : s + chunk]).float().cpu()
+                 for s in range(0, len(verts), chunk)]
     rgb = torch.cat(parts).clamp(0, 1).numpy()
     return np.round(rgb * 255.0).astype(np.uint8)
 

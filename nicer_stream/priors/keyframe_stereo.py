@@ -287,7 +287,4 @@ class StereoPriors:
         return f"{ok} of {n} {what}s{kept}"
 
     def _mark(self, index: int, fixed: bool) -> None:
-        if fixed:
-            self.fixed.add(index)
-        else:
-            self.fixed.discard(index)
+        (self.fixed.add if fixed else self.fixed.discard)(index)

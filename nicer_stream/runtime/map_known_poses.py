@@ -80,12 +80,7 @@ def _align_priors(mfs, poses) -> dict[int, tuple[float, float]]:
     """Metric (w, q) per frame index from flow triangulation with the known poses, using
     the partner with the widest baseline (frames that could not be aligned are absent)."""
     by_index = {m.index: m for m in mfs}
-    aligned = {}
-    for m in mfs:
-        wq = align_to_widest_partner(m, by_index, poses)
-        if wq is not None:
-            aligned[m.index] = wq
-    return aligned
+    return {m.index: wq for m in mfs if (wq := align_to_widest_partner(m, by_index, poses)) is not None}
 
 
 def _metric_points(cfg, mfs, aligned, poses) -> np.ndarray | None:
