@@ -35,15 +35,15 @@ def batch_command(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No line per finished source: the final table only."),
 ) -> None:
     """Run SLAM on many sources (Ray: local by default, a cluster with --address); a table and ROOT/batch.json summarise them."""
-    frames = o.SourceFlags(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side,
-                           intrinsics=intrinsics)
+    frames = dict(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side,
+                  intrinsics=intrinsics)
     flags = dict(preset=preset, config_file=config, priors=priors, flow=flow, sinks=tuple(sink), render_every=render_every)
     scheduling = dict(local=local, address=address, cpus_per_run=cpus_per_run, gpus_per_run=gpus_per_run,
                       retries=retries, force=force, quiet=quiet)
     user_errors(_batch)(sources, out, frames, flags, not no_eval, scheduling)
 
 
-def _batch(sources: list[str], out: Path, frames: o.SourceFlags, flags: dict, evaluate: bool, scheduling: dict) -> None:
+def _batch(sources: list[str], out: Path, frames: dict, flags: dict, evaluate: bool, scheduling: dict) -> None:
     import importlib.util
 
     from nicer_stream.runtime.batch_plan import RunOptions, expand_sources, plan, table
@@ -53,7 +53,7 @@ def _batch(sources: list[str], out: Path, frames: o.SourceFlags, flags: dict, ev
         raise UserError(f"--cpus-per-run must be > 0, got {scheduling['cpus_per_run']}")
     o.at_least("--gpus-per-run", scheduling["gpus_per_run"], 0)
     o.at_least("--retries", scheduling["retries"], 0)
-    request = o.run_request("", Path(), frames.options(), **flags)
+    request = o.run_request("", Path(), o.source_options(**frames), **flags)
     items = plan(expand_sources(list(sources)))
     if not scheduling["local"] and importlib.util.find_spec("ray") is None:
         typer.echo(f"{RAY_HINT}; running sequentially (--local)", err=True)

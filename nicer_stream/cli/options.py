@@ -4,7 +4,7 @@ the accepted range, exit 2)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import typer
 
@@ -39,35 +39,21 @@ RENDER_EVERY = typer.Option(10, "--render-every", help="Render (and evaluate) ev
                                                        "their images are kept until then.")
 
 
-@dataclass(frozen=True)
-class SourceFlags:
-    """The flags choosing a source's frames, as typed; `options()` checks them."""
+def source_options(start: int = 0, stride: int = 1, drop: str | None = None, max_frames: int | None = None,
+                   max_side: int | None = None, intrinsics: str | None = None):
+    """The checked `SourceOptions` of the flags choosing a source's frames, as typed (--drop A:B,
+    --intrinsics fx,fy,cx,cy at the original image size); a value out of range is a one-line
+    UserError naming its flag."""
+    from sources.base import SourceOptions
 
-    start: int = 0
-    """--start: input frames skipped first."""
-    stride: int = 1
-    """--stride: every N-th input frame is kept."""
-    drop: str | None = None
-    """--drop A:B: input frames A..B-1 dropped."""
-    max_frames: int | None = None
-    """--max-frames: stop after this many kept frames."""
-    max_side: int | None = None
-    """--max-side: the longer image side at most this many pixels."""
-    intrinsics: str | None = None
-    """--intrinsics fx,fy,cx,cy at the original image size."""
-
-    def options(self):
-        """The checked `SourceOptions`; a value out of range is a one-line UserError naming its flag."""
-        from sources.base import SourceOptions
-
-        if self.max_side is not None and self.max_side < MIN_SIDE:
-            raise UserError(f"--max-side must be an integer >= {MIN_SIDE} (pixels), got {self.max_side}")
-        intr = parse_intrinsics(self.intrinsics)
-        if intr is not None and not (all(map(math.isfinite, intr)) and intr[0] > 0 and intr[1] > 0):
-            raise UserError(f"--intrinsics must be fx,fy,cx,cy with fx, fy > 0 and cx, cy finite (pixels), "
-                            f"got '{self.intrinsics}'")
-        return SourceOptions(start=self.start, stride=self.stride, drop=parse_drop(self.drop),
-                             max_frames=self.max_frames, max_side=self.max_side, intrinsics=intr)
+    if max_side is not None and max_side < MIN_SIDE:
+        raise UserError(f"--max-side must be an integer >= {MIN_SIDE} (pixels), got {max_side}")
+    intr = parse_intrinsics(intrinsics)
+    if intr is not None and not (all(map(math.isfinite, intr)) and intr[0] > 0 and intr[1] > 0):
+        raise UserError(f"--intrinsics must be fx,fy,cx,cy with fx, fy > 0 and cx, cy finite (pixels), "
+                        f"got '{intrinsics}'")
+    return SourceOptions(start=start, stride=stride, drop=parse_drop(drop), max_frames=max_frames, max_side=max_side,
+                         intrinsics=intr)
 
 
 def check_device(device: str) -> str:
