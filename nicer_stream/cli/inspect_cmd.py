@@ -11,7 +11,6 @@ import typer
 
 from nicer_stream.errors import UserError
 
-MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 
 def describe_rrd(path: Path) -> list[str]:
@@ -72,8 +71,10 @@ def describe_mcap(path: Path) -> list[str]:
     """Profile, time range, then one line per topic: schema, encoding, message count."""
     from mcap.reader import make_reader
 
+    from sources.mcap_source import MAGIC
+
     with open(path, "rb") as f:
-        if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+        if f.read(len(MAGIC)) != MAGIC:
             raise UserError(f"{path} is not an MCAP file (bad magic bytes): give a .mcap file")
         f.seek(0)
         summary, profile = None, "?"
