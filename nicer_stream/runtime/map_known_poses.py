@@ -86,9 +86,7 @@ def _align_priors(mfs, poses) -> dict[int, tuple[float, float]]:
 def _metric_points(cfg, mfs, aligned, poses) -> np.ndarray | None:
     """(P, 3) world points of the metric-aligned priors (every 4th pixel of every aligned frame)."""
     pts = []
-    for m in mfs:
-        if m.index not in aligned:
-            continue
+    for m in (m for m in mfs if m.index in aligned):
         w, q = aligned[m.index]
         depth = ((m.depth_prior - q) / w)[::4, ::4]
         sub = m.intr.resized(depth.shape[1], depth.shape[0])
