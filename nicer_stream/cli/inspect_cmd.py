@@ -160,13 +160,9 @@ def describe_outputs(path: Path) -> tuple[list[str], dict]:
     return lines, data
 
 
-def describe(target: str) -> list[str]:
-    """Dispatch on what `target` is: a .rrd file, a .mcap file, an output directory or a source URI."""
-    return describe_with_data(target)[0]
-
-
 def describe_with_data(target: str) -> tuple[list[str], dict]:
-    """(text lines, the same as a JSON-ready dict) for `target`."""
+    """(text lines, the same as a JSON-ready dict) for `target`: a .rrd or .mcap file, an output
+    directory or a source URI."""
     from nicer_stream.io.output_dir import SUMMARY_FILE
 
     path = Path(target)
