@@ -32,10 +32,10 @@ def _grid_axes(bound_min, bound_max, resolution: int) -> list[np.ndarray]:
     return [np.linspace(lo[i], hi[i], resolution) for i in range(3)]
 
 
-def _vertex_colors(color_fn: ColorFn, mesh: trimesh.Trimesh, chunk: int, device) -> np.ndarray:
+def _vertex_colors(color_fn: ColorFn, mesh: trimesh.Trimesh, chunk: int) -> np.ndarray:
     """(V, 3) uint8 colours of color_fn at the vertices with the mesh's vertex normals."""
-    verts = torch.as_tensor(mesh.vertices, dtype=torch.float32, device=device)
-    normals = torch.tensor(np.array(mesh.vertex_normals), dtype=torch.float32, device=device)
+    verts = torch.as_tensor(mesh.vertices, dtype=torch.float32)
+    normals = torch.tensor(np.array(mesh.vertex_normals), dtype=torch.float32)
     with torch.no_grad():
         parts = [color_fn(verts[s : s + chunk], normals[s : s + chunk]).float().cpu()
                  for s in range(0, len(verts), chunk)]
@@ -50,7 +50,6 @@ def extract_mesh(
     bound_max,
     resolution: int,
     chunk: int = 65536,
-    device=None,
     jump_fn: JumpFn | None = None,
 ) -> trimesh.Trimesh:
     """Zero level set of `sdf_fn` inside the box [bound_min, bound_max].
@@ -76,7 +75,7 @@ def extract_mesh(
     edges can sit elsewhere along the edge.
     """
     axes = _grid_axes(bound_min, bound_max, resolution)
-    volume = evaluate_grid_sparse(sdf_fn, axes, chunk, device, jump_fn=jump_fn)
+    volume = evaluate_grid_sparse(sdf_fn, axes, chunk, None, jump_fn=jump_fn)
     finite = volume[np.isfinite(volume)]
     if finite.size == 0 or finite.min() >= 0 or finite.max() <= 0:
         return trimesh.Trimesh()
@@ -89,7 +88,7 @@ def extract_mesh(
     verts = verts.astype(np.float64) + np.array([a[0] for a in axes])
     mesh = trimesh.Trimesh(vertices=verts, faces=faces, process=False)
     if color_fn is not None:
-        mesh.visual.vertex_colors = _vertex_colors(color_fn, mesh, chunk, device)
+        mesh.visual.vertex_colors = _vertex_colors(color_fn, mesh, chunk)
     return mesh
 
 
