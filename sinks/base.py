@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 import torch
 
-from nicer_stream.geometry.se3 import pose_to_tum
+from nicer_stream.geometry.se3 import matrix_to_quat, pose_to_tum
 from nicer_stream.types import Intrinsics
 
 
@@ -124,11 +124,8 @@ def pose_tq(T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def rotations_to_quats(rotations: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) rotations -> (N, 4) quaternions (qx, qy, qz, qw)."""
-    T = np.zeros((len(rotations), 4, 4))
-    T[:, :3, :3] = rotations
-    T[:, 3, 3] = 1.0
-    return pose_to_tum(torch.as_tensor(T)).numpy()[:, 3:]
+    """(N, 3, 3) rotations -> (N, 4) quaternions (qx, qy, qz, qw), qw >= 0."""
+    return matrix_to_quat(torch.as_tensor(np.asarray(rotations, dtype=np.float64))).numpy()
 
 
 def rgb_to_u8(rgb: np.ndarray) -> np.ndarray:

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +26,7 @@ from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_tr
 from nicer_stream.runtime.scene_export import save_render, scene_mesh
 from nicer_stream.runtime.stage_timer import StageTimer
 from nicer_stream.render.renderer import render_image
-from nicer_stream.runtime.source_setup import intrinsics_dict, open_configured
+from nicer_stream.runtime.source_setup import open_configured
 from nicer_stream.priors.keyframe_stereo import StereoPriors, fusion_params
 from sources.base import SourceOptions
 
@@ -168,7 +168,7 @@ def run_map(req: MapRequest) -> Path:
     write_summary(
         out, frames=len(frames), preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
         interrupted=interrupted, bound=bound, source=req.source, notes=notes,
-        intrinsics=intrinsics_dict(frames[0].intrinsics), config=config_mod.to_dict(cfg),
+        intrinsics=asdict(frames[0].intrinsics), config=config_mod.to_dict(cfg),
         stats={"iterations": stats.iters if stats else 0, "final_loss": stats.loss if stats else None,
                "loss_terms": stats.terms if stats else {}},
     )
