@@ -30,7 +30,8 @@ def register(app: typer.Typer) -> None:
         from nicer_stream.cli.eval_cmd import eval_command
 
         drop_range = user_errors(parse_drop)(drop)
-        user_errors(eval_command)(Path(outdir), source, max_side, stride, start, max_frames, drop_range)
+        user_errors(eval_command)(Path(outdir), source, max_side=max_side, stride=stride, start=start,
+                                  max_frames=max_frames, drop=drop_range)
 
     add("batch", "batch_cmd", "batch_command")
     add("render", "render_cmd", "render_command")

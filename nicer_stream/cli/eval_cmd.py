@@ -52,16 +52,9 @@ def format_table(rep: od.EvalReport) -> str:
     return "\n".join(f"{name:<{w}}  {val}" for name, val in rows)
 
 
-def eval_command(
-    outdir: Path,
-    source: str | None,
-    max_side: int | None = None,
-    stride: int = 1,
-    start: int = 0,
-    max_frames: int | None = None,
-    drop: tuple[int, int] | None = None,
-) -> od.EvalReport:
-    """Evaluate `outdir` against source URI `source` (default: summary.json's `source`), write eval.json, print a table."""
+def eval_command(outdir: Path, source: str | None, **frames) -> od.EvalReport:
+    """Evaluate `outdir` against source URI `source` (default: summary.json's `source`), write eval.json, print a table.
+    `frames`: the SourceOptions that pick the run's frames (start, stride, drop, max_frames, max_side)."""
     # Heavy imports (torch, trimesh, sources) only once the command runs.
     from nicer_stream.eval.evaluate import evaluate_output_dir
     from sources import open_source
@@ -73,8 +66,7 @@ def eval_command(
         source = od.read_summary(outdir).source if (outdir / od.SUMMARY_FILE).is_file() else None
         if source is None:
             raise UserError("no --source given and summary.json names none: pass --source URI (e.g. replica:PATH)")
-    opts = SourceOptions(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side)
-    src = open_source(source, opts)
+    src = open_source(source, SourceOptions(**frames))
     report = evaluate_output_dir(outdir, src, progress=lambda line: typer.echo(f"eval: {line}"))
     path = od.write_eval(outdir, report)
     typer.echo(format_table(report))
