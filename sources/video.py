@@ -40,11 +40,8 @@ def fov_intrinsics(width: int, height: int, hfov_deg: float) -> Intrinsics:
 
 def sidecar_calibration(video: Path) -> Path | None:
     """An intrinsics file next to the video: `<video>.intrinsics.txt`, `<stem>.intrinsics.txt`, `intrinsics.txt`."""
-    for cand in (video.with_name(video.name + ".intrinsics.txt"), video.with_name(video.stem + ".intrinsics.txt"),
-                 video.with_name("intrinsics.txt")):
-        if cand.is_file():
-            return cand
-    return None
+    names = (video.name + ".intrinsics.txt", video.stem + ".intrinsics.txt", "intrinsics.txt")
+    return next((c for c in map(video.with_name, names) if c.is_file()), None)
 
 
 class VideoSource(FrameSource):
