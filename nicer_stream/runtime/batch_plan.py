@@ -124,15 +124,11 @@ def record_from_outputs(item: BatchItem, out_dir: Path, status: str, error: str 
     return rec
 
 
-def _default_request() -> RunRequest:
-    return RunRequest(source="", out_dir=Path())
-
-
 @dataclass(frozen=True)
 class RunOptions:
     """What every source of the batch gets."""
 
-    request: RunRequest = field(default_factory=_default_request)
+    request: RunRequest = field(default_factory=lambda: RunRequest(source="", out_dir=Path()))
     """The `run` request of each source, its source and output directory replaced (and quiet)."""
     evaluate: bool = True
     """Evaluate each output directory against the source's ground truth, where it has some."""
