@@ -16,7 +16,6 @@ from nicer_stream.config import RenderConfig
 from nicer_stream.geometry.pose_estimation import pnp_pose
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.render.renderer import render_rays, rays_for_pixels
-from nicer_stream.types import Intrinsics
 
 
 @torch.no_grad()
