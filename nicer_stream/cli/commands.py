@@ -52,13 +52,4 @@ def register(app: typer.Typer) -> None:
 
         user_errors(convert_command)(Path(outdir), to, Path(out) if out else None, force)
 
-    @app.command("inspect")
-    def inspect(
-        target: str = typer.Argument(..., help="A .rrd or .mcap file, an output directory, or a source URI such as replica:PATH."),
-        as_json: bool = typer.Option(False, "--json", help="Print JSON (for scripts) instead of text."),
-    ) -> None:
-        """Describe a recording (.rrd entities, .mcap topics), an output directory (summary, eval table) or a source (frames, size, intrinsics, GT)."""
-        from nicer_stream.cli.common import user_errors
-        from nicer_stream.cli.inspect_cmd import inspect_command
-
-        user_errors(inspect_command)(target, as_json)
+    add("inspect", "inspect_cmd", "inspect_command")

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import typer
 
+from nicer_stream.cli.common import user_errors
 from nicer_stream.errors import UserError
 
 
@@ -190,8 +191,12 @@ def _describe_file_or_source(target: str, path: Path) -> list[str]:
                     f"summary.json) or a source URI ({', '.join(s + ':PATH' for s in SCHEMES)})")
 
 
-def inspect_command(target: str, as_json: bool = False) -> None:
-    """CLI entry: print the description (as JSON with `as_json`)."""
+@user_errors
+def inspect_command(
+    target: str = typer.Argument(..., help="A .rrd or .mcap file, an output directory, or a source URI such as replica:PATH."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON (for scripts) instead of text."),
+) -> None:
+    """Describe a recording (.rrd entities, .mcap topics), an output directory (summary, eval table) or a source (frames, size, intrinsics, GT)."""
     lines, data = describe_with_data(target)
     if as_json:
         typer.echo(json.dumps(data, indent=2, default=str))
