@@ -168,7 +168,7 @@ def run_map(req: MapRequest) -> Path:
     write_summary(
         out, frames=len(frames), preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
         interrupted=interrupted, bound=bound, source=req.source, notes=notes,
-        intrinsics=asdict(frames[0].intrinsics), config=config_mod.to_dict(cfg),
+        intrinsics=asdict(frames[0].intrinsics), config=asdict(cfg),
         stats={"iterations": stats.iters if stats else 0, "final_loss": stats.loss if stats else None,
                "loss_terms": stats.terms if stats else {}},
     )

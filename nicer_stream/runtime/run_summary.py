@@ -3,7 +3,6 @@ from __future__ import annotations
 
 from dataclasses import asdict
 
-from nicer_stream import config as config_mod
 from nicer_stream.io import output_dir as od
 from nicer_stream.runtime.frame_priors import fuses_stereo, provider_names
 from nicer_stream.runtime.run_outputs import write_summary
@@ -60,7 +59,7 @@ def write_run_summary(s: RunState) -> od.Summary:
         s.out, frames=s.book.fed, preset=s.cfg.preset, device=s.req.device, priors=provider_names(s.engine),
         timer=s.timer, interrupted=s.early, error=s.error, bound=s.slam.bound, source=s.req.source,
         notes=run_notes(s), intrinsics=asdict(intr) if intr is not None else None,
-        config=config_mod.to_dict(s.cfg), stats=run_stats(s))
+        config=asdict(s.cfg), stats=run_stats(s))
 
 
 def final_line(s: RunState, summary: od.Summary) -> str:
