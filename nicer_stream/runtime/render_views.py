@@ -23,6 +23,7 @@ from nicer_stream.render.renderer import render_image
 from nicer_stream.runtime.scene_export import render_tile
 from nicer_stream.runtime.stop import StopSignals
 from nicer_stream.types import Intrinsics
+from sinks import make_sink
 
 PATHS = ("frames", "poses", "orbit", "interpolate")
 VIDEO_FILE = "views.mp4"
@@ -127,11 +128,7 @@ def render_views(req: ViewRequest) -> tuple[Path, int]:
     dest = Path(req.dest) if req.dest else out / "views"
     dest.mkdir(parents=True, exist_ok=True)
     write_tum(dest / "poses.tum", times, poses)
-    sink = None
-    if req.sinks:
-        from sinks import make_sink
-
-        sink = make_sink(list(req.sinks))
+    sink = make_sink(list(req.sinks)) if req.sinks else None
     video, written, t0 = None, 0, time.perf_counter()
     say = (lambda s: None) if req.quiet else (lambda s: print(s, flush=True))
     say(f"rendering {len(poses)} views ({req.path}) at {intr.width}x{intr.height} from {out / SCENE_FILE} into {dest}")
