@@ -13,7 +13,7 @@ from pathlib import Path
 
 from nicer_stream.errors import UserError, one_line
 from nicer_stream.io import output_dir as od
-from nicer_stream.runtime.slam_run import RunRequest
+from nicer_stream.runtime.slam_run import RunRequest, run_slam
 
 BATCH_FILE = "batch.json"
 PID_FILE = ".worker.pid"  # the process running a source (for tests and for users who need to kill one)
@@ -153,8 +153,6 @@ def per_source_sinks(specs: tuple[str, ...], out: Path) -> tuple[str, ...]:
 def run_one(item: BatchItem, root: str, opts: RunOptions) -> SourceRecord:
     """Run SLAM on one source into ROOT/name (quiet), evaluate it when it has ground truth, and
     return its row. Errors become the row's one-line error, never an exception."""
-    from nicer_stream.runtime.slam_run import run_slam
-
     out = Path(root) / item.name
     out.mkdir(parents=True, exist_ok=True)
     (out / PID_FILE).write_text(str(os.getpid()))
