@@ -235,7 +235,5 @@ class OracleFlow(FlowProvider):
                 raise UserError(_NEEDS_GT.format(what="poses", index=f.index))
         if src.gt_depth is None:
             raise UserError(_NEEDS_GT.format(what="depth", index=src.index))
-        flow, valid = flow_from_depth_pose(
-            src.gt_depth, src.gt_pose, src.intrinsics, dst.gt_pose, dst.intrinsics, dst.gt_depth, self.occlusion_tol
-        )
-        return FlowPrior(src.index, dst.index, flow, valid)
+        return FlowPrior(src.index, dst.index, *flow_from_depth_pose(
+            src.gt_depth, src.gt_pose, src.intrinsics, dst.gt_pose, dst.intrinsics, dst.gt_depth, self.occlusion_tol))
