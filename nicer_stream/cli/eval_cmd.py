@@ -5,6 +5,7 @@ from pathlib import Path
 
 import typer
 
+from nicer_stream.cli.common import parse_drop, user_errors
 from nicer_stream.errors import UserError
 from nicer_stream.io import output_dir as od
 
@@ -50,6 +51,21 @@ def format_table(rep: od.EvalReport) -> str:
     rows.append(("priors", ", ".join(rep.priors) or "-"))
     w = max(len(r[0]) for r in rows)
     return "\n".join(f"{name:<{w}}  {val}" for name, val in rows)
+
+
+@user_errors
+def eval_cli(
+    outdir: str = typer.Argument(..., help="Output directory of a run (trajectory.tum, mesh.ply, renders/, summary.json)."),
+    source: str = typer.Option(None, "--source", help="Source URI with ground truth, e.g. replica:PATH (default: summary.json's)."),
+    max_side: int = typer.Option(None, "--max-side", help="Resize frames so the longer side is at most N pixels."),
+    stride: int = typer.Option(1, "--stride", help="Keep every N-th frame (as in the run)."),
+    start: int = typer.Option(0, "--start", help="Skip this many frames first (as in the run)."),
+    max_frames: int = typer.Option(None, "--max-frames", help="Stop after this many frames (as in the run)."),
+    drop: str = typer.Option(None, "--drop", help="A:B drops input frames A..B-1 (as in the run)."),
+) -> None:
+    """Recompute eval.json for an output directory against a source's ground truth and print a table."""
+    eval_command(Path(outdir), source, max_side=max_side, stride=stride, start=start, max_frames=max_frames,
+                 drop=parse_drop(drop))
 
 
 def eval_command(outdir: Path, source: str | None, **frames) -> od.EvalReport:
