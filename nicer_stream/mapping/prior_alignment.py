@@ -11,6 +11,7 @@ import torch
 
 from nicer_stream.geometry.camera import camera_dirs, pixel_grid
 from nicer_stream.geometry.se3 import invert
+from nicer_stream.render.renderer import render_rays, rays_for_pixels
 from nicer_stream.types import Intrinsics
 
 
@@ -87,8 +88,6 @@ def align_prior_to_map(frame, T_world_cam: torch.Tensor, model, beta, render_cfg
     at `T_world_cam` on every `step`-th pixel, or None. Fixing them once when a frame is
     first mapped keeps every frame at the map's scale (the per-iteration fit of Eq. 10
     lets scale and shift follow whatever the rendered depth does)."""
-    from nicer_stream.render.renderer import render_rays, rays_for_pixels
-
     if frame.depth_prior is None:
         return None
     h, w = frame.intr.height, frame.intr.width
