@@ -18,10 +18,14 @@ import torch
 
 from nicer_stream.geometry.se3 import matrix_to_quat, pose_to_tum
 from nicer_stream.types import Intrinsics
+from sinks.options import SinkOptions
 
 
 class Sink(ABC):
     """Receives per-frame results, trajectories, meshes and metrics."""
+
+    options: SinkOptions = SinkOptions()
+    """How much of each input frame it keeps (`wants_image`); the default keeps every image."""
 
     @abstractmethod
     def log_pose(self, index: int, timestamp: float, T_world_cam: np.ndarray,
@@ -79,7 +83,7 @@ class Sink(ABC):
     def wants_image(self, index: int) -> bool:
         """Whether `log_frame(index, ...)` records the image (else the pose only): a caller can
         then skip holding the image for it (the sink worker's queue)."""
-        return True
+        return self.options.keeps_image(index)
 
     def __enter__(self) -> "Sink":
         return self

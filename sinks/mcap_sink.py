@@ -191,9 +191,6 @@ class McapSink(Sink):
             self._write("/camera/normal", normal_png(normal, ns))
         self._flush_chunk()
 
-    def wants_image(self, index: int) -> bool:
-        return self.options.keeps_image(index)
-
     def log_trajectory(self, positions, name="estimate", rotations=None) -> None:
         pos = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         quats = (np.tile([0.0, 0.0, 0.0, 1.0], (len(pos), 1)) if rotations is None

@@ -145,9 +145,6 @@ class RerunSink(Sink):
         if self.wants_image(index):
             self._log_images("world/camera/image", *downsized(self.options.image_side, intrinsics, rgb, depth, normal))
 
-    def wants_image(self, index: int) -> bool:
-        return self.options.keeps_image(index)
-
     def log_trajectory(self, positions, name="estimate", rotations=None) -> None:
         self._check_open()
         pts = np.asarray(positions, dtype=np.float32).reshape(-1, 3)
