@@ -30,9 +30,6 @@ class DisFlowProvider(FlowProvider):
         self.alpha = alpha
         self.beta = beta
 
-    def flow(self, src: Frame, dst: Frame) -> FlowPrior:
-        return self.flow_both(src, dst)[0]
-
     def flow_both(self, a: Frame, b: Frame) -> tuple[FlowPrior, FlowPrior]:
         if a.rgb.shape != b.rgb.shape:
             # DIS needs same-sized images; sources resize every frame alike.
