@@ -187,14 +187,14 @@ def best_planes_streaming(planes, max_disagreement: int) -> BestPlanes:
 
 def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tuple[np.ndarray, np.ndarray]],
                 intr: Intrinsics, near: float, far: float,
-                params: StereoConfig = StereoConfig()) -> np.ndarray:
+                params: StereoConfig = StereoConfig(), volume: bool = False) -> np.ndarray:
     """Plane-sweep depth of the reference image.
 
     ref_rgb (H, W, 3) float [0, 1] or (H, W) grey (`to_grey_f32`); T_world_ref (4, 4) T_world_cam; partners:
     (image of the same kind and size, T_world_cam (4, 4)) pairs, same intrinsics `intr`; near < far: the z-depth range searched,
     in the poses' unit. Returns the z-depth (H, W) float32 in the poses' unit, 0 where not
-    confident. With `min_uniqueness` the whole cost volume is kept (`best_planes_reference`), else
-    the planes are streamed (`best_planes_streaming`, the same result)."""
+    confident. `volume`: keep the whole cost volume (`best_planes_reference`; always with
+    `min_uniqueness`), else stream the planes (`best_planes_streaming`, the same result)."""
     if not partners:
         raise ValueError("plane sweep needs at least one partner image")
     (h, wd) = ref_rgb.shape[:2]
@@ -221,7 +221,7 @@ def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tup
         return out
 
     costs = None
-    if params.min_uniqueness > 0:
+    if volume or params.min_uniqueness > 0:
         costs = np.stack([np.stack(plane_costs(d)) for d in 1.0 / inv_d], axis=1)
         best = best_planes_reference(costs, params.max_plane_disagreement)
     else:
