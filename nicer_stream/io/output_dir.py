@@ -170,10 +170,11 @@ def _finite_or_null(x: Any) -> Any:
     return x
 
 
-def _write_json(path: Path, data: dict) -> None:
+def _write_json(path: Path, data: dict) -> Path:
     tmp = path.with_suffix(path.suffix + ".tmp")
     tmp.write_text(json.dumps(_finite_or_null(data), indent=2, allow_nan=False) + "\n")
     tmp.replace(path)  # atomic: readers never see half a file
+    return path
 
 
 def _read_json(path: Path) -> dict:
@@ -206,9 +207,7 @@ _NESTED = {"stages_s": StageSeconds, "bound": Bound, "evaluated_views": Evaluate
 
 def write_summary(out_dir: str | Path, summary: Summary) -> Path:
     """Write OUT/summary.json; returns its path."""
-    path = Path(out_dir) / SUMMARY_FILE
-    _write_json(path, asdict(summary))
-    return path
+    return _write_json(Path(out_dir) / SUMMARY_FILE, asdict(summary))
 
 
 def read_summary(out_dir: str | Path) -> Summary:
@@ -219,9 +218,7 @@ def read_summary(out_dir: str | Path) -> Summary:
 
 def write_eval(out_dir: str | Path, report: EvalReport) -> Path:
     """Write OUT/eval.json; returns its path."""
-    path = Path(out_dir) / EVAL_FILE
-    _write_json(path, asdict(report))
-    return path
+    return _write_json(Path(out_dir) / EVAL_FILE, asdict(report))
 
 
 def read_eval(out_dir: str | Path) -> EvalReport:
