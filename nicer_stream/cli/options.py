@@ -52,8 +52,8 @@ def source_options(start: int = 0, stride: int = 1, drop: str | None = None, max
     if intr is not None and not (all(map(math.isfinite, intr)) and intr[0] > 0 and intr[1] > 0):
         raise UserError(f"--intrinsics must be fx,fy,cx,cy with fx, fy > 0 and cx, cy finite (pixels), "
                         f"got '{intrinsics}'")
-    return SourceOptions(start=start, stride=stride, drop=parse_drop(drop), max_frames=max_frames, max_side=max_side,
-                         intrinsics=intr)
+    return SourceOptions(start=start, stride=stride, drop=parse_drop(drop), max_frames=max_frames,
+                         max_side=max_side, intrinsics=intr)
 
 
 def check_device(device: str) -> str:
@@ -73,7 +73,8 @@ def at_least(flag: str, value: float | None, low: float, note: str = "") -> None
         raise UserError(f"{flag} must be >= {low}{note}, got {value}")
 
 
-def run_request(source: str, out, source_opts, log_images_every: int = 10, log_image_side: int = 320, **fields):
+def run_request(source: str, out, source_opts, log_images_every: int = 10, log_image_side: int = 320,
+                **fields):
     """The checked `RunRequest` of a run of `source` into `out`: `fields` are its other fields as
     typed (sinks as given: a bare 'rerun' and the --log-images-every / --log-image-side query are
     resolved here); a value out of range is a one-line UserError naming its flag."""

@@ -34,7 +34,8 @@ def ssim(pred: np.ndarray, gt: np.ndarray, data_range: float = 1.0) -> float:
         raise ValueError(f"ssim: shapes differ {pred.shape} vs {gt.shape}")
     if min(pred.shape[:2]) < SSIM_WIN:
         raise ValueError(f"ssim needs images of at least {SSIM_WIN}x{SSIM_WIN} pixels, got {pred.shape[:2]}")
-    return float(structural_similarity(pred, gt, data_range=data_range, channel_axis=-1 if pred.ndim == 3 else None,
+    channels = -1 if pred.ndim == 3 else None
+    return float(structural_similarity(pred, gt, data_range=data_range, channel_axis=channels,
                                        gaussian_weights=True, sigma=1.5, use_sample_covariance=False))
 
 

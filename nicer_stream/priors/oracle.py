@@ -37,7 +37,8 @@ from nicer_stream.errors import UserError
 from nicer_stream.geometry.camera import in_image, pixel_grid, project, unproject
 from nicer_stream.geometry.se3 import invert, transform_points
 from nicer_stream.priors.base import DepthNormal, DepthNormalProvider, FlowProvider
-from nicer_stream.geometry.depth_normals import fill_nearest, normals_from_depth, orient_towards_camera, unproject_depth
+from nicer_stream.geometry.depth_normals import (fill_nearest, normals_from_depth, orient_towards_camera,
+                                                unproject_depth)
 from nicer_stream.types import FlowPrior, Frame, Intrinsics
 
 _NEEDS_GT = (
@@ -235,5 +236,6 @@ class OracleFlow(FlowProvider):
                 raise UserError(_NEEDS_GT.format(what="poses", index=f.index))
         if src.gt_depth is None:
             raise UserError(_NEEDS_GT.format(what="depth", index=src.index))
-        return FlowPrior(src.index, dst.index, *flow_from_depth_pose(
-            src.gt_depth, src.gt_pose, src.intrinsics, dst.gt_pose, dst.intrinsics, dst.gt_depth, self.occlusion_tol))
+        return FlowPrior(src.index, dst.index, *flow_from_depth_pose(src.gt_depth, src.gt_pose, src.intrinsics,
+                                                                     dst.gt_pose, dst.intrinsics, dst.gt_depth,
+                                                                     self.occlusion_tol))

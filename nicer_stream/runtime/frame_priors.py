@@ -23,7 +23,8 @@ def provider_names(engine: PriorEngine) -> list[str]:
 
 def map_frame(frame: Frame, engine: PriorEngine, flow_to: list[Frame], device) -> MapFrame:
     """Priors for `frame` (the oracle provider may read its GT) -> a MapFrame with GT removed."""
-    return MapFrame.from_frame(frame.without_ground_truth(), engine.priors(frame, flow_to), torch.device(device))
+    pri = engine.priors(frame, flow_to)
+    return MapFrame.from_frame(frame.without_ground_truth(), pri, torch.device(device))
 
 
 def fuses_stereo(cfg: SlamConfig, provider: str) -> bool:

@@ -45,7 +45,8 @@ def pose_from_flows(sources: list[tuple[MapFrame, torch.Tensor]], dst: MapFrame,
                     model, beta, render: RenderConfig, n_per_source: int, gen: torch.Generator):
     """T_world_cam of `dst` (as `T_guess`'s dtype/device) from the flows of `sources`
     ((frame, T_world_cam) pairs) to it, or None when no PnP solution has enough inliers."""
-    found = [c for f, T in sources if (c := flow_points(f, T, dst.index, model, beta, render, n_per_source, gen))]
+    found = [c for f, T in sources
+             if (c := flow_points(f, T, dst.index, model, beta, render, n_per_source, gen)) is not None]
     if not found:
         return None
     res = pnp_pose(*(np.concatenate(parts) for parts in zip(*found)), dst.intr, T_guess.double().cpu().numpy())
