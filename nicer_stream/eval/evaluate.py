@@ -229,5 +229,5 @@ def _mesh_report(est: mesh_m.SurfaceSamples, a: trajectory.Sim3, ref: mesh_m.Sur
                  kind: str) -> od.MeshReport:
     """Mesh metrics of estimate samples (estimate world) moved into the GT world by `a`."""
     normals = None if est.normals is None else est.normals @ a.R.T
-    m = mesh_m.mesh_metrics(mesh_m.SurfaceSamples(a.apply_points(est.points), normals), ref)
-    return od.MeshReport(m.acc_m, m.comp_m, m.comp_ratio, m.normal_consistency, kind)
+    moved = mesh_m.SurfaceSamples(a.apply_points(est.points), normals)
+    return replace(mesh_m.mesh_metrics(moved, ref), reference=kind)
