@@ -137,10 +137,7 @@ def convert_outputs(outdir: Path, to: str = "mcap", out: Path | None = None, for
     traj = outdir / TRAJECTORY_FILE
     if not traj.is_file():
         raise UserError(f"no {TRAJECTORY_FILE} in {outdir}: point at an output directory written by 'nicer-stream run'")
-    try:
-        times, poses = read_tum(traj)
-    except ValueError as e:
-        raise UserError(f"{e}: fix or rewrite the trajectory file") from None
+    times, poses = read_tum(traj, "fix or rewrite the trajectory file")
     out = _resolve_out(outdir, to, out, force)
     intr = read_intrinsics(outdir)
     mesh_path = outdir / MESH_FILE

@@ -43,12 +43,7 @@ class _View:
 
 def _read_trajectory(out: Path) -> tuple[np.ndarray, np.ndarray] | None:
     path = out / od.TRAJECTORY_FILE
-    if not path.is_file():
-        return None
-    try:
-        return read_tum(path)
-    except ValueError as e:
-        raise UserError(f"{e}: rewrite or delete the trajectory") from None
+    return read_tum(path, "rewrite or delete the trajectory") if path.is_file() else None
 
 
 def _render_paths(out: Path) -> dict[int, Path]:

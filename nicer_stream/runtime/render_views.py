@@ -61,11 +61,11 @@ def camera_path(req: ViewRequest, summary: od.Summary, centre: np.ndarray) -> tu
     if req.path == "poses":
         if req.poses_file is None or not Path(req.poses_file).is_file():
             raise UserError(f"poses file {req.poses_file} not found: give a TUM trajectory in the run's world frame")
-        return _tum(req.poses_file)
+        return read_tum(req.poses_file, "fix the TUM file")
     traj = Path(req.out_dir) / od.TRAJECTORY_FILE
     if not traj.is_file():
         raise UserError(f"{traj} not found: the run wrote no trajectory; use --poses FILE.tum")
-    t, T = _tum(traj)
+    t, T = read_tum(traj, "fix the TUM file")
     if len(T) == 0:
         raise UserError(f"{traj} is empty: the run stopped before its first pose; use --poses FILE.tum")
     if req.path == "frames":
@@ -90,13 +90,6 @@ def observed_centre(model, beta) -> np.ndarray:
     w = counts[counts > 0]
     mean = (centres.double() * w[:, None]).sum(0) / w.sum()
     return model.bound.denormalise(mean[None].float()).double().numpy()[0]
-
-
-def _tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    try:
-        return read_tum(path)
-    except ValueError as e:
-        raise UserError(f"{e}: fix the TUM file") from None
 
 
 def _keyframe_rows(summary: od.Summary, n_rows: int) -> list[int]:
