@@ -42,12 +42,6 @@ def _set(on: bool) -> None:
         torch.set_flush_denormal(on)
 
 
-def thread_flags() -> list[bool]:
-    """FTZ/DAZ of the calling thread and each of its OpenMP workers (tests), or [] without the helper."""
-    mod = _helper()
-    return list(mod.get_flush(torch.get_num_threads())) if mod is not None else []
-
-
 @contextlib.contextmanager
 def flush_denormals():
     """Within the block, denormal operands and results are 0 on this thread and its OpenMP

@@ -56,14 +56,12 @@ def _file_target(scheme: str, path: str, suffix: str) -> Path:
 def _make_one(spec: str) -> Sink:
     base, opts = split_spec(spec.strip())
     scheme, _, rest = base.partition(":")
-    if scheme == "rerun":
+    if scheme in ("rerun", "rerun+grpc"):
         from sinks.rerun_sink import RerunSink
 
+        if scheme == "rerun+grpc":
+            return RerunSink(grpc_url=rest or None, options=opts)
         return RerunSink(spawn=True, options=opts) if not rest else RerunSink(_file_target("rerun", rest, ".rrd"), options=opts)
-    if scheme == "rerun+grpc":
-        from sinks.rerun_sink import RerunSink
-
-        return RerunSink(grpc_url=rest or None, options=opts)
     if scheme == "mcap":
         from sinks.mcap_sink import McapSink
 

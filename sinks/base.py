@@ -16,12 +16,16 @@ import cv2
 import numpy as np
 import torch
 
-from nicer_stream.geometry.se3 import pose_to_tum
+from nicer_stream.geometry.se3 import matrix_to_quat, pose_to_tum
 from nicer_stream.types import Intrinsics
+from sinks.options import SinkOptions
 
 
 class Sink(ABC):
     """Receives per-frame results, trajectories, meshes and metrics."""
+
+    options: SinkOptions = SinkOptions()
+    """How much of each input frame it keeps (`wants_image`); the default keeps every image."""
 
     @abstractmethod
     def log_pose(self, index: int, timestamp: float, T_world_cam: np.ndarray,
@@ -79,13 +83,23 @@ class Sink(ABC):
     def wants_image(self, index: int) -> bool:
         """Whether `log_frame(index, ...)` records the image (else the pose only): a caller can
         then skip holding the image for it (the sink worker's queue)."""
-        return True
+        return self.options.keeps_image(index)
 
     def __enter__(self) -> "Sink":
         return self
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+def _forwarded(name: str):
+    """A Sink method that hands the call `name(*args, **kwargs)` to `self._forward`."""
+
+    def method(self, *args, **kwargs) -> None:
+        self._forward(name, *args, **kwargs)
+
+    method.__name__ = method.__qualname__ = name
+    return method
 
 
 class ForwardingSink(Sink):
@@ -96,32 +110,15 @@ class ForwardingSink(Sink):
     def _forward(self, name: str, *args, **kwargs) -> None:
         """Make (or arrange) the call `name(*args, **kwargs)` on the wrapped sink(s)."""
 
-    def log_pose(self, *args, **kwargs) -> None:
-        self._forward("log_pose", *args, **kwargs)
-
-    def log_frame(self, *args, **kwargs) -> None:
-        self._forward("log_frame", *args, **kwargs)
-
-    def log_trajectory(self, *args, **kwargs) -> None:
-        self._forward("log_trajectory", *args, **kwargs)
-
-    def log_mesh(self, *args, **kwargs) -> None:
-        self._forward("log_mesh", *args, **kwargs)
-
-    def log_beta_voxels(self, *args, **kwargs) -> None:
-        self._forward("log_beta_voxels", *args, **kwargs)
-
-    def log_map_render(self, *args, **kwargs) -> None:
-        self._forward("log_map_render", *args, **kwargs)
-
-    def log_keyframes(self, *args, **kwargs) -> None:
-        self._forward("log_keyframes", *args, **kwargs)
-
-    def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
-        self._forward("log_scalars", index, values)
-
-    def log_warning(self, index: int, kind: str, message: str) -> None:
-        self._forward("log_warning", index, kind, message)
+    log_pose = _forwarded("log_pose")
+    log_frame = _forwarded("log_frame")
+    log_trajectory = _forwarded("log_trajectory")
+    log_mesh = _forwarded("log_mesh")
+    log_beta_voxels = _forwarded("log_beta_voxels")
+    log_map_render = _forwarded("log_map_render")
+    log_keyframes = _forwarded("log_keyframes")
+    log_scalars = _forwarded("log_scalars")
+    log_warning = _forwarded("log_warning")
 
 
 def pose_tq(T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -131,11 +128,8 @@ def pose_tq(T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def rotations_to_quats(rotations: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) rotations -> (N, 4) quaternions (qx, qy, qz, qw)."""
-    T = np.zeros((len(rotations), 4, 4))
-    T[:, :3, :3] = rotations
-    T[:, 3, 3] = 1.0
-    return pose_to_tum(torch.as_tensor(T)).numpy()[:, 3:]
+    """(N, 3, 3) rotations -> (N, 4) quaternions (qx, qy, qz, qw), qw >= 0."""
+    return matrix_to_quat(torch.as_tensor(np.asarray(rotations, dtype=np.float64))).numpy()
 
 
 def rgb_to_u8(rgb: np.ndarray) -> np.ndarray:

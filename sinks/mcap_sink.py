@@ -49,6 +49,12 @@ from sinks.options import SinkOptions
 WORLD, CAMERA, MAP_CAMERA = "world", "camera", "map_camera"
 
 
+def stamped(msg, ns: int):
+    """`msg` with its `timestamp` set to `ns` nanoseconds."""
+    msg.timestamp.FromNanoseconds(ns)
+    return msg
+
+
 def make_pose(t: np.ndarray, q: np.ndarray) -> Pose:
     """Translation (3,) and quaternion (qx, qy, qz, qw) -> foxglove Pose."""
     p = Pose()
@@ -59,29 +65,28 @@ def make_pose(t: np.ndarray, q: np.ndarray) -> Pose:
 
 def calibration(intr: Intrinsics, ns: int, frame_id: str = CAMERA) -> CameraCalibration:
     """Undistorted pinhole: K (3x3) and P = [K | 0] (3x4), row-major."""
-    msg = CameraCalibration(frame_id=frame_id, width=intr.width, height=intr.height, distortion_model="plumb_bob")
-    msg.timestamp.FromNanoseconds(ns)
     K = intr.matrix()
-    msg.K.extend(K.reshape(-1).tolist())
-    msg.D.extend([0.0] * 5)
-    msg.R.extend(np.eye(3).reshape(-1).tolist())
-    msg.P.extend(np.hstack([K, np.zeros((3, 1))]).reshape(-1).tolist())
-    return msg
+    msg = CameraCalibration(frame_id=frame_id, width=intr.width, height=intr.height, distortion_model="plumb_bob",
+                            K=K.reshape(-1).tolist(), D=[0.0] * 5, R=np.eye(3).reshape(-1).tolist(),
+                            P=np.hstack([K, np.zeros((3, 1))]).reshape(-1).tolist())
+    return stamped(msg, ns)
 
 
 def depth_image(depth: np.ndarray, ns: int, frame_id: str = CAMERA) -> RawImage:
     """(H, W) z-depth metres -> RawImage 32FC1, little-endian, unpadded rows."""
     d = np.ascontiguousarray(depth, dtype="<f4")
-    msg = RawImage(frame_id=frame_id, width=d.shape[1], height=d.shape[0], encoding="32FC1",
-                   step=4 * d.shape[1], data=d.tobytes())
-    msg.timestamp.FromNanoseconds(ns)
-    return msg
+    return stamped(RawImage(frame_id=frame_id, width=d.shape[1], height=d.shape[0], encoding="32FC1",
+                            step=4 * d.shape[1], data=d.tobytes()), ns)
 
 
 def compressed(data: bytes, fmt: str, ns: int, frame_id: str = CAMERA) -> CompressedImage:
-    msg = CompressedImage(frame_id=frame_id, data=data, format=fmt)
-    msg.timestamp.FromNanoseconds(ns)
-    return msg
+    return stamped(CompressedImage(frame_id=frame_id, data=data, format=fmt), ns)
+
+
+def normal_png(normal: np.ndarray, ns: int, frame_id: str = CAMERA) -> CompressedImage:
+    """(H, W, 3) camera-frame normals -> a PNG CompressedImage of (n + 1) / 2."""
+    _, png = cv2.imencode(".png", cv2.cvtColor(normal_to_u8(normal), cv2.COLOR_RGB2BGR))
+    return compressed(png.tobytes(), "png", ns, frame_id)
 
 
 def repeated_doubles_wire(field_number: int, values: np.ndarray) -> bytes:
@@ -111,9 +116,7 @@ def mesh_update(vertices, faces, colors_u8, ns: int) -> SceneUpdate:
         rgba = np.ones((len(colors_u8), 4))
         rgba[:, : colors_u8.shape[1]] = colors_u8[:, :4] / 255.0
         tri.MergeFromString(repeated_doubles_wire(4, rgba))
-    ent = SceneEntity(frame_id=WORLD, id="mesh", triangles=[tri])
-    ent.timestamp.FromNanoseconds(ns)
-    return SceneUpdate(entities=[ent])
+    return SceneUpdate(entities=[stamped(SceneEntity(frame_id=WORLD, id="mesh", triangles=[tri]), ns)])
 
 
 def beta_cloud(centres: np.ndarray, beta: np.ndarray, ns: int) -> PointCloud:
@@ -121,10 +124,8 @@ def beta_cloud(centres: np.ndarray, beta: np.ndarray, ns: int) -> PointCloud:
     data = np.concatenate([np.asarray(centres, "<f4").reshape(-1, 3), np.asarray(beta, "<f4").reshape(-1, 1)], 1)
     f32 = PackedElementField.NumericType.FLOAT32
     fields = [PackedElementField(name=n, offset=4 * i, type=f32) for i, n in enumerate(["x", "y", "z", "beta"])]
-    msg = PointCloud(frame_id=WORLD, pose=make_pose(np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])),
-                     point_stride=16, fields=fields, data=np.ascontiguousarray(data).tobytes())
-    msg.timestamp.FromNanoseconds(ns)
-    return msg
+    return stamped(PointCloud(frame_id=WORLD, pose=make_pose(np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0])),
+                              point_stride=16, fields=fields, data=np.ascontiguousarray(data).tobytes()), ns)
 
 
 class McapSink(Sink):
@@ -153,9 +154,7 @@ class McapSink(Sink):
         self._writer._writer.flush()
 
     def _pose_in_frame(self, T: np.ndarray, ns: int) -> PoseInFrame:
-        msg = PoseInFrame(frame_id=WORLD, pose=make_pose(*pose_tq(T)))
-        msg.timestamp.FromNanoseconds(ns)
-        return msg
+        return stamped(PoseInFrame(frame_id=WORLD, pose=make_pose(*pose_tq(T))), ns)
 
     def log_pose(self, index, timestamp, T_world_cam, gt_T_world_cam=None, timestamp_ns=None) -> None:
         self._write_pose(index, timestamp, T_world_cam, gt_T_world_cam, timestamp_ns)
@@ -163,8 +162,7 @@ class McapSink(Sink):
 
     def _write_tf(self, T_world_cam: np.ndarray, child: str, ns: int) -> None:
         t, q = pose_tq(T_world_cam)
-        tf = FrameTransform(parent_frame_id=WORLD, child_frame_id=child)
-        tf.timestamp.FromNanoseconds(ns)
+        tf = stamped(FrameTransform(parent_frame_id=WORLD, child_frame_id=child), ns)
         tf.translation.x, tf.translation.y, tf.translation.z = (float(v) for v in t)
         tf.rotation.x, tf.rotation.y, tf.rotation.z, tf.rotation.w = (float(v) for v in q)
         self._write("/tf", tf)
@@ -190,20 +188,15 @@ class McapSink(Sink):
         if depth is not None:
             self._write("/camera/depth", depth_image(depth, ns))
         if normal is not None:
-            _, png = cv2.imencode(".png", cv2.cvtColor(normal_to_u8(normal), cv2.COLOR_RGB2BGR))
-            self._write("/camera/normal", compressed(png.tobytes(), "png", ns))
+            self._write("/camera/normal", normal_png(normal, ns))
         self._flush_chunk()
-
-    def wants_image(self, index: int) -> bool:
-        return self.options.keeps_image(index)
 
     def log_trajectory(self, positions, name="estimate", rotations=None) -> None:
         pos = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         quats = (np.tile([0.0, 0.0, 0.0, 1.0], (len(pos), 1)) if rotations is None
                  else rotations_to_quats(np.asarray(rotations, dtype=np.float64)))
         msg = PosesInFrame(frame_id=WORLD, poses=[make_pose(t, q) for t, q in zip(pos, quats)])
-        msg.timestamp.FromNanoseconds(self._now_ns)
-        self._write("/trajectory" if name == "estimate" else f"/trajectory/{name}", msg)
+        self._write("/trajectory" if name == "estimate" else f"/trajectory/{name}", stamped(msg, self._now_ns))
 
     def log_mesh(self, vertices, faces, vertex_colors=None, normals=None) -> None:
         # Foxglove triangle lists carry no normals (they are shaded flat).
@@ -222,15 +215,13 @@ class McapSink(Sink):
         self._write("/map/calibration", calibration(intrinsics, ns, MAP_CAMERA))
         self._write("/map/image", compressed(encode_jpeg(rgb, self.jpeg_quality), "jpeg", ns, MAP_CAMERA))
         self._write("/map/depth", depth_image(depth, ns, MAP_CAMERA))
-        _, png = cv2.imencode(".png", cv2.cvtColor(normal_to_u8(normal), cv2.COLOR_RGB2BGR))
-        self._write("/map/normal", compressed(png.tobytes(), "png", ns, MAP_CAMERA))
+        self._write("/map/normal", normal_png(normal, ns, MAP_CAMERA))
         self._flush_chunk()
 
     def log_keyframes(self, poses) -> None:
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
         msg = PosesInFrame(frame_id=WORLD, poses=[make_pose(*pose_tq(T)) for T in poses])
-        msg.timestamp.FromNanoseconds(self._now_ns)
-        self._write("/keyframes", msg)
+        self._write("/keyframes", stamped(msg, self._now_ns))
 
     def log_scalars(self, index: int, values: Mapping[str, float]) -> None:
         ns = self._time_ns.get(int(index), self._now_ns)
@@ -240,8 +231,7 @@ class McapSink(Sink):
     def log_warning(self, index: int, kind: str, message: str) -> None:
         ns = self._time_ns.get(int(index), self._now_ns)
         msg = Log(level=Log.Level.WARNING, message=f"frame {index}: {kind}: {message}", name="nicer-stream")
-        msg.timestamp.FromNanoseconds(ns)
-        self._write("/tracking/warnings", msg, ns)
+        self._write("/tracking/warnings", stamped(msg, ns), ns)
 
     def close(self) -> None:
         if self._closed:

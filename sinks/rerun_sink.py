@@ -45,21 +45,16 @@ STRIP_COLOURS = {"estimate": [255, 140, 0], "tracked": [255, 215, 120]}
 
 def default_blueprint() -> rrb.Blueprint:
     """3D world view, the camera's 2D images (tabs) and the metrics time series."""
-    image, render = "world/camera/image", "world/map_camera/image"
+    def images(origin: str, names: tuple[str, str, str]) -> rrb.Tabs:  # rgb, depth and normal tabs
+        return rrb.Tabs(*(rrb.Spatial2DView(origin=origin, contents=["$origin", f"$origin/{part}"], name=name)
+                          for part, name in zip(("rgb", "depth", "normal"), names)))
+
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Spatial3DView(origin="world", name="3D"),
             rrb.Vertical(
-                rrb.Tabs(
-                    rrb.Spatial2DView(origin=image, contents=["$origin", "$origin/rgb"], name="input"),
-                    rrb.Spatial2DView(origin=image, contents=["$origin", "$origin/depth"], name="depth"),
-                    rrb.Spatial2DView(origin=image, contents=["$origin", "$origin/normal"], name="normal"),
-                ),
-                rrb.Tabs(
-                    rrb.Spatial2DView(origin=render, contents=["$origin", "$origin/rgb"], name="map rgb"),
-                    rrb.Spatial2DView(origin=render, contents=["$origin", "$origin/depth"], name="map depth"),
-                    rrb.Spatial2DView(origin=render, contents=["$origin", "$origin/normal"], name="map normal"),
-                ),
+                images("world/camera/image", ("input", "depth", "normal")),
+                images("world/map_camera/image", ("map rgb", "map depth", "map normal")),
                 rrb.Tabs(
                     rrb.TimeSeriesView(origin="metrics", name="metrics"),
                     rrb.TextLogView(origin="tracking", name="tracking warnings"),
@@ -149,9 +144,6 @@ class RerunSink(Sink):
         self.log_pose(index, timestamp, T_world_cam, gt_T_world_cam, timestamp_ns)
         if self.wants_image(index):
             self._log_images("world/camera/image", *downsized(self.options.image_side, intrinsics, rgb, depth, normal))
-
-    def wants_image(self, index: int) -> bool:
-        return self.options.keeps_image(index)
 
     def log_trajectory(self, positions, name="estimate", rotations=None) -> None:
         self._check_open()

@@ -9,7 +9,7 @@ import numpy as np
 
 from nicer_stream.errors import SourceError
 from nicer_stream.grey import to_grey_u8
-from nicer_stream.types import DetailImage, Frame, Intrinsics
+from nicer_stream.types import DetailImage, Frame
 
 
 @dataclass(frozen=True)
@@ -99,14 +99,6 @@ def resize_frame(frame: Frame, opts: SourceOptions) -> Frame:
         depth = cv2.resize(frame.gt_depth, (w, h), interpolation=cv2.INTER_NEAREST)
     # replace() keeps every other field (name, timestamp_ns, ...).
     return replace(frame, rgb=rgb, intrinsics=frame.intrinsics.resized(w, h), gt_depth=depth)
-
-
-def intrinsics_from_override(opts: SourceOptions, width: int, height: int) -> Intrinsics | None:
-    """Intrinsics from `--intrinsics fx,fy,cx,cy` for an image of this size, or None."""
-    if opts.intrinsics is None:
-        return None
-    fx, fy, cx, cy = opts.intrinsics
-    return Intrinsics(fx, fy, cx, cy, width, height)
 
 
 def read_rgb(path) -> np.ndarray:

@@ -67,10 +67,7 @@ def calibration_from_mapping(data, origin: str) -> CameraCalibration:
 
 
 def _first(mapping: dict, keys: tuple[str, ...]):
-    for key in keys:
-        if key in mapping:
-            return mapping[key]
-    return None
+    return next((mapping[key] for key in keys if key in mapping), None)
 
 
 def _flat(value) -> np.ndarray | None:

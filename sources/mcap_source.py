@@ -12,7 +12,7 @@ are read linearly from the start, in file order.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Iterator
 
@@ -46,6 +46,8 @@ class McapLayout:
     """Summary with chunk indexes: read by seeking, chunk by chunk."""
     complete: bool
     """Ends with the MCAP magic; False for a truncated file."""
+    counts: dict[str, int] = field(default_factory=dict)
+    """Messages per topic from the summary's statistics (indexed, complete files; else empty)."""
 
     def listing(self, names=None) -> str:
         names = sorted(self.topics) if names is None else names
@@ -69,7 +71,10 @@ def read_layout(path: Path) -> McapLayout:
         if summary is not None and summary.channels:
             names = {i: s.name for i, s in summary.schemas.items()}
             topics = {c.topic: names.get(c.schema_id, "") for c in summary.channels.values()}
-            return McapLayout(path, topics, bool(summary.chunk_indexes), complete)
+            stats = summary.statistics.channel_message_counts if summary.statistics is not None else {}
+            ids = {t: [i for i, c in summary.channels.items() if c.topic == t] for t in topics}
+            counts = {t: sum(stats[i] for i in ids[t]) for t in topics if all(i in stats for i in ids[t])}
+            return McapLayout(path, topics, bool(summary.chunk_indexes), complete, counts)
         # No summary: the channel records are spread through the data section.
         f.seek(0)
         names, topics = {}, {}
@@ -216,8 +221,9 @@ class McapSource(FrameSource):
     def expected_frames(self) -> int | None:
         """The topic's message count from the summary's statistics, after start/stride/drop/
         max_frames; None for a file without them (index-less, truncated)."""
-        count = topic_message_count(self.layout, self.topic)
-        return None if count is None else len(self.opts.selected(count))
+        if not self.layout.indexed or self.topic not in self.layout.counts:
+            return None
+        return len(self.opts.selected(self.layout.counts[self.topic]))
 
     def _report(self, kept: int, ended: bool) -> None:
         if self.skipped_frames:
@@ -225,24 +231,6 @@ class McapSource(FrameSource):
         if ended and (self.truncated or not self.layout.complete):
             log.warning("%s is truncated (no MCAP end marker): read %d frame(s) of %s up to the cut; "
                         "re-record or repair it (e.g. `mcap recover`) for the rest", self.layout.path, kept, self.topic)
-
-
-def topic_message_count(layout: McapLayout, topic: str) -> int | None:
-    """Messages on `topic` per the summary's statistics, or None when the file has none."""
-    if not (layout.indexed and layout.complete):
-        return None
-    try:
-        with layout.path.open("rb") as f:
-            summary = make_reader(f).get_summary()
-    except Exception:  # a damaged summary: the length is unknown, the frames still readable
-        return None
-    if summary is None or summary.statistics is None:
-        return None
-    counts = summary.statistics.channel_message_counts
-    ids = [i for i, c in summary.channels.items() if c.topic == topic]
-    if not ids or any(i not in counts for i in ids):
-        return None
-    return sum(counts[i] for i in ids)
 
 
 def open(path: str, query: dict[str, str], opts: SourceOptions) -> McapSource:

@@ -40,35 +40,26 @@ def fov_intrinsics(width: int, height: int, hfov_deg: float) -> Intrinsics:
 
 def sidecar_calibration(video: Path) -> Path | None:
     """An intrinsics file next to the video: `<video>.intrinsics.txt`, `<stem>.intrinsics.txt`, `intrinsics.txt`."""
-    for cand in (video.with_name(video.name + ".intrinsics.txt"), video.with_name(video.stem + ".intrinsics.txt"),
-                 video.with_name("intrinsics.txt")):
-        if cand.is_file():
-            return cand
-    return None
+    names = (video.name + ".intrinsics.txt", video.stem + ".intrinsics.txt", "intrinsics.txt")
+    return next((c for c in map(video.with_name, names) if c.is_file()), None)
 
 
 class VideoSource(FrameSource):
     """Frames of a video file; see the module docstring for timestamps and intrinsics."""
 
-    def __init__(self, path: Path, calib: CameraCalibration, opts: SourceOptions) -> None:
+    def __init__(self, path: Path, calib: CameraCalibration, opts: SourceOptions, announced: int = 0) -> None:
         super().__init__(opts)
-        self.path, self.calibration = path, calib
+        self.path, self.calibration, self.announced = path, calib, announced  # the container's frame count
         self.name = path.stem
         self.undistort = Undistorter(calib, enabled=opts.undistort)
 
     def expected_frames(self) -> int | None:
         """The container's announced frame count after start/stride/drop/max_frames, or None when
         it announces none (some containers estimate it: for progress, not for indexing)."""
-        cap = cv2.VideoCapture(str(self.path))
-        try:
-            announced = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
-        finally:
-            cap.release()
-        return len(self.opts.selected(announced)) if announced > 0 else None
+        return len(self.opts.selected(self.announced)) if self.announced > 0 else None
 
     def _frames(self) -> Iterator[Frame]:
         cap = cv2.VideoCapture(str(self.path))
-        announced = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
         raw, kept, ended = -1, 0, False
         try:
             while self.opts.max_frames is None or kept < self.opts.max_frames:
@@ -95,6 +86,7 @@ class VideoSource(FrameSource):
         # Reached only when the iteration ends (not when the consumer stops early).
         if self.skipped_frames:
             log.warning("%s: skipped %d undecodable frame(s)", self.path, self.skipped_frames)
+        announced = self.announced
         if ended and announced and raw + 1 < announced - 1:
             log.warning("%s ended after %d of the %d frames its container announces: the file may be truncated",
                             self.path, raw + 1, announced)
@@ -146,8 +138,9 @@ def open(path: str, query: dict[str, str], opts: SourceOptions) -> VideoSource:
             raise SourceError(f"OpenCV cannot open video {path} (corrupt file or unsupported codec): "
                               f"re-encode it (e.g. ffmpeg -i {path} -c:v libx264 out.mp4) or extract frames and use folder:DIR")
         width, height = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        announced = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
     finally:
         cap.release()
     if width <= 0 or height <= 0:
         raise SourceError(f"video {path} reports no frame size: re-encode it or extract frames and use folder:DIR")
-    return VideoSource(p, _calibration(p, query, opts, width, height), opts)
+    return VideoSource(p, _calibration(p, query, opts, width, height), opts, announced)

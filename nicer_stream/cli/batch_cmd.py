@@ -10,6 +10,7 @@ from nicer_stream.cli.common import user_errors
 from nicer_stream.errors import UserError
 
 
+@user_errors
 def batch_command(
     sources: list[str] = typer.Argument(..., help="Source URIs, globs in a URI's path (mcap:logs/*.mcap) or text files of URIs (.txt)."),
     out: Path = typer.Option(..., "--out", help="Root directory: ROOT/<name>/ per source, ROOT/batch.json."),
@@ -35,30 +36,26 @@ def batch_command(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No line per finished source: the final table only."),
 ) -> None:
     """Run SLAM on many sources (Ray: local by default, a cluster with --address); a table and ROOT/batch.json summarise them."""
-    frames = o.SourceFlags(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side,
-                           intrinsics=intrinsics)
-    flags = o.RunFlags(preset=preset, config=config, priors=priors, flow=flow, sinks=tuple(sink), render_every=render_every)
-    scheduling = dict(local=local, address=address, cpus_per_run=cpus_per_run, gpus_per_run=gpus_per_run,
-                      retries=retries, force=force, quiet=quiet)
-    user_errors(_batch)(sources, out, frames, flags, not no_eval, scheduling)
-
-
-def _batch(sources: list[str], out: Path, frames: o.SourceFlags, flags: o.RunFlags, evaluate: bool, scheduling: dict) -> None:
     import importlib.util
 
     from nicer_stream.runtime.batch_plan import RunOptions, expand_sources, plan, table
     from nicer_stream.runtime.batch_run import RAY_HINT, BatchRequest, run_batch
 
-    if not scheduling["cpus_per_run"] > 0:
-        raise UserError(f"--cpus-per-run must be > 0, got {scheduling['cpus_per_run']}")
-    o.at_least("--gpus-per-run", scheduling["gpus_per_run"], 0)
-    o.at_least("--retries", scheduling["retries"], 0)
-    request = flags.request("", Path(), frames.options())
+    if not cpus_per_run > 0:
+        raise UserError(f"--cpus-per-run must be > 0, got {cpus_per_run}")
+    o.at_least("--gpus-per-run", gpus_per_run, 0)
+    o.at_least("--retries", retries, 0)
+    opts = o.source_options(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side,
+                            intrinsics=intrinsics)
+    request = o.run_request("", Path(), opts, preset=preset, config_file=config, priors=priors, flow=flow,
+                            sinks=tuple(sink), render_every=render_every)
     items = plan(expand_sources(list(sources)))
-    if not scheduling["local"] and importlib.util.find_spec("ray") is None:
+    if not local and importlib.util.find_spec("ray") is None:
         typer.echo(f"{RAY_HINT}; running sequentially (--local)", err=True)
-        scheduling["local"] = True
-    rep = run_batch(BatchRequest(tuple(items), out, RunOptions(request, evaluate=evaluate), **scheduling))
+        local = True
+    rep = run_batch(BatchRequest(tuple(items), out, RunOptions(request, evaluate=not no_eval), local=local,
+                                 address=address, cpus_per_run=cpus_per_run, gpus_per_run=gpus_per_run,
+                                 retries=retries, force=force, quiet=quiet))
     typer.echo(table(rep.sources))
     failed = sum(r.status == "failed" for r in rep.sources)
     typer.echo(f"{len(rep.sources)} sources in {rep.wall_s:.0f} s ({failed} failed){'; interrupted' if rep.interrupted else ''}; "

@@ -1,49 +1,21 @@
 """Registers every sub-command on the typer app (modules import heavy deps lazily)."""
 from __future__ import annotations
 
+import importlib
+
 import typer
 
 
-
 def register(app: typer.Typer) -> None:
-    from nicer_stream.cli.run_cmd import run_command
+    def add(name: str, module: str, fn: str) -> None:  # the command function `fn` of nicer_stream.cli.`module`
+        app.command(name)(getattr(importlib.import_module(f"nicer_stream.cli.{module}"), fn))
 
-    app.command("run")(run_command)
-
-    from nicer_stream.cli.map_cmd import map_command
-
-    app.command("map")(map_command)
-
-    @app.command("eval")
-    def eval_(
-        outdir: str = typer.Argument(..., help="Output directory of a run (trajectory.tum, mesh.ply, renders/, summary.json)."),
-        source: str = typer.Option(None, "--source", help="Source URI with ground truth, e.g. replica:PATH (default: summary.json's)."),
-        max_side: int = typer.Option(None, "--max-side", help="Resize frames so the longer side is at most N pixels."),
-        stride: int = typer.Option(1, "--stride", help="Keep every N-th frame (as in the run)."),
-        start: int = typer.Option(0, "--start", help="Skip this many frames first (as in the run)."),
-        max_frames: int = typer.Option(None, "--max-frames", help="Stop after this many frames (as in the run)."),
-        drop: str = typer.Option(None, "--drop", help="A:B drops input frames A..B-1 (as in the run)."),
-    ) -> None:
-        """Recompute eval.json for an output directory against a source's ground truth and print a table."""
-        from pathlib import Path
-
-        from nicer_stream.cli.common import parse_drop, user_errors
-        from nicer_stream.cli.eval_cmd import eval_command
-
-        drop_range = user_errors(parse_drop)(drop)
-        user_errors(eval_command)(Path(outdir), source, max_side, stride, start, max_frames, drop_range)
-
-    from nicer_stream.cli.batch_cmd import batch_command
-
-    app.command("batch")(batch_command)
-
-    from nicer_stream.cli.render_cmd import render_command
-
-    app.command("render")(render_command)
-
-    from nicer_stream.cli.priors_cmd import priors
-
-    app.command("priors")(priors)
+    add("run", "run_cmd", "run_command")
+    add("map", "map_cmd", "map_command")
+    add("eval", "eval_cmd", "eval_cli")
+    add("batch", "batch_cmd", "batch_command")
+    add("render", "render_cmd", "render_command")
+    add("priors", "priors_cmd", "priors")
 
     @app.command("convert")
     def convert(
@@ -60,13 +32,4 @@ def register(app: typer.Typer) -> None:
 
         user_errors(convert_command)(Path(outdir), to, Path(out) if out else None, force)
 
-    @app.command("inspect")
-    def inspect(
-        target: str = typer.Argument(..., help="A .rrd or .mcap file, an output directory, or a source URI such as replica:PATH."),
-        as_json: bool = typer.Option(False, "--json", help="Print JSON (for scripts) instead of text."),
-    ) -> None:
-        """Describe a recording (.rrd entities, .mcap topics), an output directory (summary, eval table) or a source (frames, size, intrinsics, GT)."""
-        from nicer_stream.cli.common import user_errors
-        from nicer_stream.cli.inspect_cmd import inspect_command
-
-        user_errors(inspect_command)(target, as_json)
+    add("inspect", "inspect_cmd", "inspect_command")

@@ -16,14 +16,10 @@ def user_errors(fn):
     def wrapper(*args, **kwargs):
         try:
             return fn(*args, **kwargs)
-        except UserError as e:
-            typer.echo(f"error: {e}", err=True)
-            raise typer.Exit(2)
-        except FileNotFoundError as e:
-            typer.echo(f"error: file not found: {e.filename or e}", err=True)
-            raise typer.Exit(2)
-        except OSError as e:
-            typer.echo(f"error: {os_error(e)}", err=True)
+        except (UserError, OSError) as e:
+            message = (e if isinstance(e, UserError) else f"file not found: {e.filename or e}"
+                       if isinstance(e, FileNotFoundError) else os_error(e))
+            typer.echo(f"error: {message}", err=True)
             raise typer.Exit(2)
 
     return wrapper

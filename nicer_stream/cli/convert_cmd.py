@@ -21,6 +21,7 @@ from nicer_stream.errors import UserError
 from nicer_stream.io.output_dir import MESH_FILE, RENDERS_DIR, SUMMARY_FILE, TRAJECTORY_FILE
 from nicer_stream.io.trajectory import read_tum
 from nicer_stream.types import Intrinsics
+from sinks import make_sink
 from sinks.base import Sink
 
 FORMATS = {"mcap": ".mcap", "rrd": ".rrd"}
@@ -63,16 +64,6 @@ def _resolve_out(outdir: Path, to: str, out: Path | None, force: bool) -> Path:
     if out.exists() and not force:
         raise UserError(f"{out} already exists: pass --force to overwrite it or choose another --out")
     return out
-
-
-def _open_sink(to: str, out: Path) -> Sink:
-    if to == "mcap":
-        from sinks.mcap_sink import McapSink
-
-        return McapSink(out)
-    from sinks.rerun_sink import RerunSink
-
-    return RerunSink(out)
 
 
 def _load_render(path: Path) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
@@ -146,15 +137,12 @@ def convert_outputs(outdir: Path, to: str = "mcap", out: Path | None = None, for
     traj = outdir / TRAJECTORY_FILE
     if not traj.is_file():
         raise UserError(f"no {TRAJECTORY_FILE} in {outdir}: point at an output directory written by 'nicer-stream run'")
-    try:
-        times, poses = read_tum(traj)
-    except ValueError as e:
-        raise UserError(f"{e}: fix or rewrite the trajectory file") from None
+    times, poses = read_tum(traj, "fix or rewrite the trajectory file")
     out = _resolve_out(outdir, to, out, force)
     intr = read_intrinsics(outdir)
     mesh_path = outdir / MESH_FILE
     mesh = _load_mesh(mesh_path) if mesh_path.is_file() else None
-    with _open_sink(to, out) as sink:
+    with make_sink(f"{'rerun' if to == 'rrd' else 'mcap'}:{out}") as sink:
         images = _log_frames(sink, outdir, times, poses, intr)
         sink.log_trajectory(poses[:, :3, 3], "estimate", rotations=poses[:, :3, :3])
         if mesh is not None:
@@ -198,7 +186,7 @@ def convert_rrd(path: Path, out: Path | None = None, force: bool = False) -> Con
     gt_frames, _, gt_poses = _rrd_poses(cols, "/world/camera_gt")
     gt = dict(zip(gt_frames, gt_poses))
     mesh_rows = cols.get("/world/mesh", {})
-    with _open_sink("mcap", out) as sink:
+    with make_sink(f"mcap:{out}") as sink:
         for f, ns, T in zip(frames, times, poses):
             sink.log_pose(f, 0.0 if ns is None else ns / 1e9, T, gt_T_world_cam=gt.get(f), timestamp_ns=ns)
         sink.log_trajectory(poses[:, :3, 3], "estimate", rotations=poses[:, :3, :3])

@@ -5,6 +5,7 @@ from pathlib import Path
 
 import typer
 
+from nicer_stream.cli.common import parse_drop, user_errors
 from nicer_stream.errors import UserError
 from nicer_stream.io import output_dir as od
 
@@ -52,16 +53,24 @@ def format_table(rep: od.EvalReport) -> str:
     return "\n".join(f"{name:<{w}}  {val}" for name, val in rows)
 
 
-def eval_command(
-    outdir: Path,
-    source: str | None,
-    max_side: int | None = None,
-    stride: int = 1,
-    start: int = 0,
-    max_frames: int | None = None,
-    drop: tuple[int, int] | None = None,
-) -> od.EvalReport:
-    """Evaluate `outdir` against source URI `source` (default: summary.json's `source`), write eval.json, print a table."""
+@user_errors
+def eval_cli(
+    outdir: str = typer.Argument(..., help="Output directory of a run (trajectory.tum, mesh.ply, renders/, summary.json)."),
+    source: str = typer.Option(None, "--source", help="Source URI with ground truth, e.g. replica:PATH (default: summary.json's)."),
+    max_side: int = typer.Option(None, "--max-side", help="Resize frames so the longer side is at most N pixels."),
+    stride: int = typer.Option(1, "--stride", help="Keep every N-th frame (as in the run)."),
+    start: int = typer.Option(0, "--start", help="Skip this many frames first (as in the run)."),
+    max_frames: int = typer.Option(None, "--max-frames", help="Stop after this many frames (as in the run)."),
+    drop: str = typer.Option(None, "--drop", help="A:B drops input frames A..B-1 (as in the run)."),
+) -> None:
+    """Recompute eval.json for an output directory against a source's ground truth and print a table."""
+    eval_command(Path(outdir), source, max_side=max_side, stride=stride, start=start, max_frames=max_frames,
+                 drop=parse_drop(drop))
+
+
+def eval_command(outdir: Path, source: str | None, **frames) -> od.EvalReport:
+    """Evaluate `outdir` against source URI `source` (default: summary.json's `source`), write eval.json, print a table.
+    `frames`: the SourceOptions that pick the run's frames (start, stride, drop, max_frames, max_side)."""
     # Heavy imports (torch, trimesh, sources) only once the command runs.
     from nicer_stream.eval.evaluate import evaluate_output_dir
     from sources import open_source
@@ -73,8 +82,7 @@ def eval_command(
         source = od.read_summary(outdir).source if (outdir / od.SUMMARY_FILE).is_file() else None
         if source is None:
             raise UserError("no --source given and summary.json names none: pass --source URI (e.g. replica:PATH)")
-    opts = SourceOptions(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side)
-    src = open_source(source, opts)
+    src = open_source(source, SourceOptions(**frames))
     report = evaluate_output_dir(outdir, src, progress=lambda line: typer.echo(f"eval: {line}"))
     path = od.write_eval(outdir, report)
     typer.echo(format_table(report))

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import typer
 
+from nicer_stream.cli.common import user_errors
 from nicer_stream.errors import UserError
 
-MCAP_MAGIC = b"\x89MCAP0\r\n"
 
 
 def describe_rrd(path: Path) -> list[str]:
@@ -72,8 +72,10 @@ def describe_mcap(path: Path) -> list[str]:
     """Profile, time range, then one line per topic: schema, encoding, message count."""
     from mcap.reader import make_reader
 
+    from sources.mcap_source import MAGIC
+
     with open(path, "rb") as f:
-        if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+        if f.read(len(MAGIC)) != MAGIC:
             raise UserError(f"{path} is not an MCAP file (bad magic bytes): give a .mcap file")
         f.seek(0)
         summary, profile = None, "?"
@@ -159,13 +161,9 @@ def describe_outputs(path: Path) -> tuple[list[str], dict]:
     return lines, data
 
 
-def describe(target: str) -> list[str]:
-    """Dispatch on what `target` is: a .rrd file, a .mcap file, an output directory or a source URI."""
-    return describe_with_data(target)[0]
-
-
 def describe_with_data(target: str) -> tuple[list[str], dict]:
-    """(text lines, the same as a JSON-ready dict) for `target`."""
+    """(text lines, the same as a JSON-ready dict) for `target`: a .rrd or .mcap file, an output
+    directory or a source URI."""
     from nicer_stream.io.output_dir import SUMMARY_FILE
 
     path = Path(target)
@@ -193,8 +191,12 @@ def _describe_file_or_source(target: str, path: Path) -> list[str]:
                     f"summary.json) or a source URI ({', '.join(s + ':PATH' for s in SCHEMES)})")
 
 
-def inspect_command(target: str, as_json: bool = False) -> None:
-    """CLI entry: print the description (as JSON with `as_json`)."""
+@user_errors
+def inspect_command(
+    target: str = typer.Argument(..., help="A .rrd or .mcap file, an output directory, or a source URI such as replica:PATH."),
+    as_json: bool = typer.Option(False, "--json", help="Print JSON (for scripts) instead of text."),
+) -> None:
+    """Describe a recording (.rrd entities, .mcap topics), an output directory (summary, eval table) or a source (frames, size, intrinsics, GT)."""
     lines, data = describe_with_data(target)
     if as_json:
         typer.echo(json.dumps(data, indent=2, default=str))

@@ -14,6 +14,7 @@ PRIORS_HELP = ("Depth/normal priors: auto (learned weights if present, else none
                "network's errors, evaluation only), oracle:clean (near GT, debugging), cache:DIR, omnidata, depth-anything.")
 
 
+@user_errors
 def map_command(
     source: str = typer.Option(..., "--source", help=o.SOURCE_HELP),
     out: Path = typer.Option(..., "--out", help="Output directory."),
@@ -34,14 +35,6 @@ def map_command(
     render_every: int = typer.Option(None, "--render-every", help="Render and evaluate every N-th frame, N >= 1 (default: at most 20 views, spread evenly)."),
 ) -> None:
     """Fit the neural scene to frames with known poses; writes trajectory, mesh, renders, summary (and eval.json with GT)."""
-    frames = o.SourceFlags(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side,
-                           intrinsics=intrinsics)
-    flags = o.RunFlags(preset=preset, config=config, priors=priors, flow=flow, device=device)
-    user_errors(_run)(source, out, poses, frames, flags, iters, minutes, render_every)
-
-
-def _run(source: str, out: Path, poses: str, frames: o.SourceFlags, flags: o.RunFlags, iters: int | None,
-         minutes: float | None, render_every: int | None) -> None:
     from nicer_stream.cli.run_report import evaluate_and_print
     from nicer_stream.runtime.map_known_poses import MapRequest, run_map
 
@@ -49,10 +42,11 @@ def _run(source: str, out: Path, poses: str, frames: o.SourceFlags, flags: o.Run
     o.at_least("--render-every", render_every, 1)
     if minutes is not None and not minutes > 0:
         raise UserError(f"--minutes must be > 0, got {minutes}")
-    if flags.priors == "stereo":
+    if priors == "stereo":
         raise UserError("--priors stereo needs the SLAM's poses: use `nicer-stream run` (map takes per-frame priors)")
-    opts = frames.options()
-    out_dir = run_map(MapRequest(source=source, out_dir=out, poses=poses, priors=flags.priors, flow=flags.flow,
-                                 preset=flags.preset, config_file=flags.config, iters=iters, minutes=minutes,
-                                 device=o.check_device(flags.device), render_every=render_every, source_opts=opts))
+    opts = o.source_options(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side,
+                            intrinsics=intrinsics)
+    out_dir = run_map(MapRequest(source=source, out_dir=out, poses=poses, priors=priors, flow=flow,
+                                 preset=preset, config_file=config, iters=iters, minutes=minutes,
+                                 device=o.check_device(device), render_every=render_every, source_opts=opts))
     evaluate_and_print(out_dir, source, opts)

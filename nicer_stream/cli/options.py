@@ -4,7 +4,7 @@ the accepted range, exit 2)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import replace
 
 import typer
 
@@ -39,35 +39,21 @@ RENDER_EVERY = typer.Option(10, "--render-every", help="Render (and evaluate) ev
                                                        "their images are kept until then.")
 
 
-@dataclass(frozen=True)
-class SourceFlags:
-    """The flags choosing a source's frames, as typed; `options()` checks them."""
+def source_options(start: int = 0, stride: int = 1, drop: str | None = None, max_frames: int | None = None,
+                   max_side: int | None = None, intrinsics: str | None = None):
+    """The checked `SourceOptions` of the flags choosing a source's frames, as typed (--drop A:B,
+    --intrinsics fx,fy,cx,cy at the original image size); a value out of range is a one-line
+    UserError naming its flag."""
+    from sources.base import SourceOptions
 
-    start: int = 0
-    """--start: input frames skipped first."""
-    stride: int = 1
-    """--stride: every N-th input frame is kept."""
-    drop: str | None = None
-    """--drop A:B: input frames A..B-1 dropped."""
-    max_frames: int | None = None
-    """--max-frames: stop after this many kept frames."""
-    max_side: int | None = None
-    """--max-side: the longer image side at most this many pixels."""
-    intrinsics: str | None = None
-    """--intrinsics fx,fy,cx,cy at the original image size."""
-
-    def options(self):
-        """The checked `SourceOptions`; a value out of range is a one-line UserError naming its flag."""
-        from sources.base import SourceOptions
-
-        if self.max_side is not None and self.max_side < MIN_SIDE:
-            raise UserError(f"--max-side must be an integer >= {MIN_SIDE} (pixels), got {self.max_side}")
-        intr = parse_intrinsics(self.intrinsics)
-        if intr is not None and not (all(map(math.isfinite, intr)) and intr[0] > 0 and intr[1] > 0):
-            raise UserError(f"--intrinsics must be fx,fy,cx,cy with fx, fy > 0 and cx, cy finite (pixels), "
-                            f"got '{self.intrinsics}'")
-        return SourceOptions(start=self.start, stride=self.stride, drop=parse_drop(self.drop),
-                             max_frames=self.max_frames, max_side=self.max_side, intrinsics=intr)
+    if max_side is not None and max_side < MIN_SIDE:
+        raise UserError(f"--max-side must be an integer >= {MIN_SIDE} (pixels), got {max_side}")
+    intr = parse_intrinsics(intrinsics)
+    if intr is not None and not (all(map(math.isfinite, intr)) and intr[0] > 0 and intr[1] > 0):
+        raise UserError(f"--intrinsics must be fx,fy,cx,cy with fx, fy > 0 and cx, cy finite (pixels), "
+                        f"got '{intrinsics}'")
+    return SourceOptions(start=start, stride=stride, drop=parse_drop(drop), max_frames=max_frames,
+                         max_side=max_side, intrinsics=intr)
 
 
 def check_device(device: str) -> str:
@@ -87,57 +73,22 @@ def at_least(flag: str, value: float | None, low: float, note: str = "") -> None
         raise UserError(f"{flag} must be >= {low}{note}, got {value}")
 
 
-@dataclass(frozen=True)
-class RunFlags:
-    """The options of a SLAM run that `run` and `batch` share, as typed; `request()` checks them."""
+def run_request(source: str, out, source_opts, log_images_every: int = 10, log_image_side: int = 320,
+                **fields):
+    """The checked `RunRequest` of a run of `source` into `out`: `fields` are its other fields as
+    typed (sinks as given: a bare 'rerun' and the --log-images-every / --log-image-side query are
+    resolved here); a value out of range is a one-line UserError naming its flag."""
+    from pathlib import Path
 
-    preset: str = "fast"
-    """--preset."""
-    config: str | None = None
-    """--config: a .toml/.json file overriding preset fields."""
-    priors: str = "auto"
-    """--priors: the depth / normal prior provider."""
-    flow: str | None = None
-    """--flow: the flow prior provider."""
-    device: str = "cpu"
-    """--device."""
-    sinks: tuple[str, ...] = ()
-    """--sink specs, as given."""
-    render_every: int = 10
-    """--render-every."""
-    max_renders: int = 20
-    """--max-renders (0: no cap)."""
-    realtime: bool = False
-    """--realtime."""
-    quiet: bool = False
-    """--quiet."""
-    live_mesh_every: int = 5
-    """--live-mesh-every (0: only the final mesh)."""
-    log_images_every: int = 10
-    """--log-images-every."""
-    log_image_side: int = 320
-    """--log-image-side (0: as read)."""
-    sync: bool = False
-    """--sync."""
-    mapping_worker: str = "auto"
-    """--mapping-worker: auto, on or off."""
+    from nicer_stream.cli.sink_specs import resolve_sinks
+    from nicer_stream.runtime.slam_run import RunRequest
 
-    def request(self, source: str, out, source_opts):
-        """The checked `RunRequest` of a run of `source` into `out`."""
-        from pathlib import Path
-
-        from nicer_stream.cli.sink_specs import resolve_sinks
-        from nicer_stream.runtime.slam_run import RunRequest
-
-        if self.render_every < 1 or self.max_renders < 0:
-            raise UserError(f"--render-every must be at least 1 and --max-renders at least 0 (0: no cap), "
-                            f"got {self.render_every} and {self.max_renders}")
-        at_least("--live-mesh-every", self.live_mesh_every, 0, " (0: only the final mesh)")
-        if self.mapping_worker not in ("auto", "on", "off"):
-            raise UserError(f"--mapping-worker must be auto, on or off, got {self.mapping_worker!r}")
-        return RunRequest(source=source, out_dir=Path(out), priors=self.priors, flow=self.flow, preset=self.preset,
-                          config_file=self.config, sinks=resolve_sinks(list(self.sinks), Path(out), self.log_images_every,
-                                                                       self.log_image_side),
-                          device=check_device(self.device), realtime=self.realtime, render_every=self.render_every,
-                          max_renders=self.max_renders, live_mesh_every=self.live_mesh_every, quiet=self.quiet,
-                          sync=self.sync, mapping_worker=self.mapping_worker, source_opts=source_opts)
+    req = RunRequest(source=source, out_dir=Path(out), source_opts=source_opts, **fields)
+    if req.render_every < 1 or req.max_renders < 0:
+        raise UserError(f"--render-every must be at least 1 and --max-renders at least 0 (0: no cap), "
+                        f"got {req.render_every} and {req.max_renders}")
+    at_least("--live-mesh-every", req.live_mesh_every, 0, " (0: only the final mesh)")
+    if req.mapping_worker not in ("auto", "on", "off"):
+        raise UserError(f"--mapping-worker must be auto, on or off, got {req.mapping_worker!r}")
+    return replace(req, sinks=resolve_sinks(list(req.sinks), Path(out), log_images_every, log_image_side),
+                   device=check_device(req.device))

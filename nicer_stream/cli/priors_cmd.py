@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from nicer_stream.cli.common import DROP_HELP, parse_drop, user_errors
+from nicer_stream.errors import UserError
 
 
 @user_errors
@@ -27,7 +28,6 @@ def priors(
     device: str = typer.Option("cpu", "--device", help="Torch device for network providers"),
 ) -> None:
     """Precompute depth/normal and flow priors for a source into a cache directory (read back with cache:DIR)."""
-    from nicer_stream.errors import UserError
     from nicer_stream.priors import make_depth_normal_provider, make_flow_provider
     from nicer_stream.priors.cache import FORMAT_VERSION, CacheMeta, CacheWriter
     from sources import open_source

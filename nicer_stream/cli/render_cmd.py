@@ -9,6 +9,7 @@ from nicer_stream.cli.common import user_errors
 from nicer_stream.errors import UserError
 
 
+@user_errors
 def render_command(
     outdir: Path = typer.Argument(..., help="Output directory of a run (scene.pt, summary.json, trajectory.tum)."),
     poses: Path = typer.Option(None, "--poses", help="TUM file of camera poses (T_world_cam) in the run's world frame."),
@@ -24,10 +25,6 @@ def render_command(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="No per-view lines."),
 ) -> None:
     """Render RGB, depth and normals of a finished run along a camera path: PNGs, an .mp4, the path as TUM."""
-    user_errors(_render)(outdir, poses, frames, orbit, interpolate_n, arc, scale, out, fps, sink, device, quiet)
-
-
-def _render(outdir, poses, frames, orbit, interpolate_n, arc, scale, out, fps, sinks, device, quiet) -> None:
     from nicer_stream.runtime.render_views import VIDEO_FILE, ViewRequest, render_views
 
     chosen = [name for name, on in (("poses", poses is not None), ("frames", frames), ("orbit", orbit is not None),
@@ -39,5 +36,5 @@ def _render(outdir, poses, frames, orbit, interpolate_n, arc, scale, out, fps, s
     path = chosen[0] if chosen else "frames"
     n = orbit if path == "orbit" else (interpolate_n if path == "interpolate" else 0)
     dest, written = render_views(ViewRequest(out_dir=outdir, path=path, poses_file=poses, n=n or 0, arc_deg=arc, scale=scale,
-                                             dest=out, fps=fps, sinks=tuple(sinks), device=device, quiet=quiet))
+                                             dest=out, fps=fps, sinks=tuple(sink), device=device, quiet=quiet))
     typer.echo(f"{written} views in {dest} ({VIDEO_FILE}, view_NNNNN.png: render | depth | normals, view_NNNNN.npz, poses.tum)")

@@ -9,6 +9,7 @@ from nicer_stream.cli import options as o
 from nicer_stream.cli.common import user_errors
 
 
+@user_errors
 def run_command(
     source: str = typer.Option(..., "--source", help=o.SOURCE_HELP),
     out: Path = typer.Option(Path("runs/latest"), "--out", help="Output directory."),
@@ -35,21 +36,16 @@ def run_command(
     mapping_worker: str = typer.Option("auto", "--mapping-worker", help="on: mapping on its own thread while tracking goes on; off: inline; auto: on with a GPU or >= 4 cores (on 2 cores it measured 11% slower)."),
 ) -> None:
     """Track every frame and map keyframes; writes trajectory.tum, mesh.ply, summary.json (+ eval.json with GT)."""
-    frames = o.SourceFlags(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side,
-                           intrinsics=intrinsics)
-    flags = o.RunFlags(preset=preset, config=config, priors=priors, flow=flow, device=device, sinks=tuple(sink),
-                       render_every=render_every, max_renders=max_renders, realtime=realtime, quiet=quiet,
-                       live_mesh_every=live_mesh_every, log_images_every=log_images_every,
-                       log_image_side=log_image_side, sync=sync, mapping_worker=mapping_worker)
-    user_errors(_run)(source, out, frames, flags)
-
-
-def _run(source: str, out: Path, frames: o.SourceFlags, flags: o.RunFlags) -> None:
     from nicer_stream.cli.run_report import evaluate_and_print
     from nicer_stream.runtime.slam_run import run_slam
 
-    opts = frames.options()
-    res = run_slam(flags.request(source, out, opts))
+    opts = o.source_options(start=start, stride=stride, drop=drop, max_frames=max_frames, max_side=max_side,
+                            intrinsics=intrinsics)
+    res = run_slam(o.run_request(source, out, opts, preset=preset, config_file=config, priors=priors,
+                                 flow=flow, device=device, sinks=tuple(sink), render_every=render_every,
+                                 max_renders=max_renders, realtime=realtime, quiet=quiet,
+                                 live_mesh_every=live_mesh_every, log_images_every=log_images_every,
+                                 log_image_side=log_image_side, sync=sync, mapping_worker=mapping_worker))
     if res.exit_code:  # stopped or failed: the partial outputs are written; no evaluation
         if res.error:
             typer.echo(f"error: {res.error}", err=True)

@@ -16,4 +16,5 @@ def evaluate_and_print(out_dir: Path, source: str, opts: SourceOptions) -> None:
     if not open_source(source, opts).has_gt_pose:
         typer.echo(f"outputs in {out_dir} (the source has no ground truth: no eval.json)")
         return
-    eval_command(Path(out_dir), source, None, opts.stride, opts.start, opts.max_frames, opts.drop)
+    eval_command(Path(out_dir), source, stride=opts.stride, start=opts.start, max_frames=opts.max_frames,
+                 drop=opts.drop)

@@ -16,8 +16,8 @@ from nicer_stream.config.scene import BoundConfig, MeshConfig
 from nicer_stream.config.stereo import StereoConfig
 from nicer_stream.config.slam import SlamConfig
 from nicer_stream.config.presets import PRESETS, fast, paper, preset
-from nicer_stream.config.files import load, override, to_dict
+from nicer_stream.config.files import load, override
 
 __all__ = ["FRACTIONS", "POSITIVE", "SIGNED", "Checked", "check", "ModelConfig", "RenderConfig", "LossConfig",
            "MappingConfig", "TrackingConfig", "FrontendConfig", "BoundConfig", "MeshConfig", "StereoConfig",
-           "SlamConfig", "PRESETS", "fast", "paper", "preset", "load", "override", "to_dict"]
+           "SlamConfig", "PRESETS", "fast", "paper", "preset", "load", "override"]

@@ -66,9 +66,16 @@ def check(section: Any, where: str) -> None:
 
 
 class Checked:
-    """A config section that checks its values when built (a preset, `replace`, a file)."""
+    """A config section that checks its values when built (a preset, `replace`, a file). Its
+    messages name a key by `where`: the section's field in SlamConfig, which is its class name
+    without "Config" in lower case ("mapping." for MappingConfig; "" for SlamConfig itself)."""
 
     where: ClassVar[str] = ""
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        name = cls.__name__.removesuffix("Config").lower()
+        cls.where = "" if name == "slam" else f"{name}."
 
     def __post_init__(self) -> None:
         check(self, self.where)

@@ -1,7 +1,6 @@
-"""A preset overridden by nested values or by a .toml / .json file, and a config as a plain dict."""
+"""A preset overridden by nested values or by a .toml / .json file."""
 from __future__ import annotations
 
-import dataclasses
 import json
 import tomllib
 from dataclasses import fields, is_dataclass, replace
@@ -54,8 +53,3 @@ def load(preset_name: str, file: str | Path | None = None) -> SlamConfig:
         return override(cfg, values)
     except UserError as e:
         raise UserError(f"config file {path}: {e}") from None
-
-
-def to_dict(cfg: Any) -> dict:
-    """Plain dict of a config (for summary.json)."""
-    return dataclasses.asdict(cfg)

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import Literal
 
 from nicer_stream.config.checks import Checked
 
@@ -10,8 +10,6 @@ from nicer_stream.config.checks import Checked
 @dataclass(frozen=True)
 class FrontendConfig(Checked):
     """The classical frontend (`tracking.frontend = 'classical'`, `nicer_stream/frontend/`)."""
-
-    where: ClassVar[str] = "frontend."
 
     max_side: int | None = 1280
     """The frontend works on the source's image up to this longer side (`Frame.detail`), not on the

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar, Literal
+from typing import Literal
 
 from nicer_stream.config.checks import Checked, check
 from nicer_stream.losses.weights import LossWeights
@@ -11,8 +11,6 @@ from nicer_stream.losses.weights import LossWeights
 @dataclass(frozen=True)
 class LossConfig(Checked):
     """Mapping losses (Sec. 3.3)."""
-
-    where: ClassVar[str] = "loss."
 
     def __post_init__(self) -> None:
         check(self, self.where)
@@ -42,8 +40,6 @@ class LossConfig(Checked):
 @dataclass(frozen=True)
 class MappingConfig(Checked):
     """Mapping optimiser and schedule (Sec. 3.3-3.4)."""
-
-    where: ClassVar[str] = "mapping."
 
     iters: int = 100
     """Iterations per mapping call."""

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import Literal
 
 from nicer_stream.config.checks import Checked
 
@@ -10,8 +10,6 @@ from nicer_stream.config.checks import Checked
 @dataclass(frozen=True)
 class ModelConfig(Checked):
     """Hierarchical scene representation (Sec. 3.1)."""
-
-    where: ClassVar[str] = "model."
 
     pe_levels: int = 6
     """Positional-encoding frequencies of x for the geometry MLPs."""
@@ -61,8 +59,6 @@ class ModelConfig(Checked):
 @dataclass(frozen=True)
 class RenderConfig(Checked):
     """Ray sampling and volume rendering (Sec. 3.2)."""
-
-    where: ClassVar[str] = "render."
 
     n_probe: int = 640
     """Uniform samples per ray evaluated without gradient to place the others."""

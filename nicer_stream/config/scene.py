@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import Literal
 
 from nicer_stream.config.checks import Checked
 
@@ -10,8 +10,6 @@ from nicer_stream.config.checks import Checked
 @dataclass(frozen=True)
 class BoundConfig(Checked):
     """Scene bound used to normalise into [-1, 1]^3 (never from ground truth)."""
-
-    where: ClassVar[str] = "bound."
 
     mode: Literal["auto", "config"] = "auto"
     """'auto' (SLAM: the first frame's scaled depth prior plus margin; mapping with known
@@ -35,8 +33,6 @@ class BoundConfig(Checked):
 @dataclass(frozen=True)
 class MeshConfig(Checked):
     """Mesh extraction."""
-
-    where: ClassVar[str] = "mesh."
 
     resolution: int = 512
     """Marching-cubes grid resolution per axis."""

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar
 
 from nicer_stream.config.checks import Checked
 from nicer_stream.config.frontend import FrontendConfig
@@ -16,8 +15,6 @@ from nicer_stream.config.tracking import TrackingConfig
 @dataclass(frozen=True)
 class SlamConfig(Checked):
     """Everything a run needs; each component receives only its own part."""
-
-    where: ClassVar[str] = ""
 
     preset: str = "paper"
     """Name of the preset this config started from."""

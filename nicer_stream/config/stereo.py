@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import Literal
 
 from nicer_stream.config.checks import Checked
 
@@ -10,8 +10,6 @@ from nicer_stream.config.checks import Checked
 @dataclass(frozen=True)
 class StereoConfig(Checked):
     """`--priors stereo`: plane-sweep depth of each keyframe from its neighbouring keyframes."""
-
-    where: ClassVar[str] = "stereo."
 
     window: int = 9
     """ZNCC window side, pixels (odd)."""

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import Literal
 
 from nicer_stream.config.checks import Checked
 
@@ -10,8 +10,6 @@ from nicer_stream.config.checks import Checked
 @dataclass(frozen=True)
 class TrackingConfig(Checked):
     """Camera tracking (Sec. 3.3)."""
-
-    where: ClassVar[str] = "tracking."
 
     iters: int = 100
     """Iterations per frame."""

@@ -27,6 +27,7 @@ from nicer_stream.io.scene_file import SCENE_FILE
 from sources.base import FrameSource, SourceOptions, resize_frame
 
 CULL_MAX_SIDE = 320  # GT depth kept for occlusion culling is downsampled to this (memory)
+HELDOUT_VIEWS = 8
 
 
 @dataclass
@@ -42,12 +43,7 @@ class _View:
 
 def _read_trajectory(out: Path) -> tuple[np.ndarray, np.ndarray] | None:
     path = out / od.TRAJECTORY_FILE
-    if not path.is_file():
-        return None
-    try:
-        return read_tum(path)
-    except ValueError as e:
-        raise UserError(f"{e}: rewrite or delete the trajectory") from None
+    return read_tum(path, "rewrite or delete the trajectory") if path.is_file() else None
 
 
 def _render_paths(out: Path) -> dict[int, Path]:
@@ -146,18 +142,10 @@ def _load_mesh(path: Path) -> trimesh.Trimesh | None:
     return m if isinstance(m, trimesh.Trimesh) and len(m.faces) else None
 
 
-def evaluate_output_dir(
-    out_dir: str | Path,
-    source: FrameSource,
-    mesh_samples: int = 200_000,
-    voxel: float = reference.DEFAULT_VOXEL_M,
-    threshold: float = mesh_m.COMPLETION_THRESHOLD_M,
-    seed: int = 0,
-    heldout_views: int = 8,
-    progress: Callable[[str], None] | None = None,
-) -> od.EvalReport:
+def evaluate_output_dir(out_dir: str | Path, source: FrameSource, mesh_samples: int = 200_000,
+                        progress: Callable[[str], None] | None = None) -> od.EvalReport:
     """Compare OUT's trajectory, renders and mesh with the GT of `source` (iterated once), and
-    up to `heldout_views` frames the map never saw rendered from scene.pt (eval/heldout.py).
+    up to HELDOUT_VIEWS frames the map never saw rendered from scene.pt (eval/heldout.py).
     `progress` gets a line as each step starts (the held-out renders take seconds each)."""
     say = progress or (lambda line: None)
     out = Path(out_dir)
@@ -169,14 +157,14 @@ def evaluate_output_dir(
         rep.priors = list(summary.priors)
     traj = _read_trajectory(out)
     picker = None
-    if (traj is not None and heldout_views > 0 and summary is not None and summary.intrinsics
+    if (traj is not None and summary is not None and summary.intrinsics
             and "mapped_frames" in summary.stats and (out / SCENE_FILE).is_file()):
-        picker = HeldOutPicker(traj[0], traj[1], set(summary.stats["mapped_frames"]), heldout_views)
+        picker = HeldOutPicker(traj[0], traj[1], set(summary.stats["mapped_frames"]), HELDOUT_VIEWS)
     renders = _render_paths(out)
     est_mesh = _load_mesh(out / od.MESH_FILE) if traj is not None else None
     gt_mesh_fn = getattr(source, "gt_mesh", None)
     gt_mesh = gt_mesh_fn() if est_mesh is not None and callable(gt_mesh_fn) else None
-    builder = reference.ReferenceBuilder(voxel) if est_mesh is not None and gt_mesh is None else None
+    builder = reference.ReferenceBuilder() if est_mesh is not None and gt_mesh is None else None
 
     say("reading the source's ground truth")
     stamps, poses, views, cams = [], [], [], []
@@ -208,20 +196,20 @@ def evaluate_output_dir(
     if est_mesh is not None and align is not None:
         ref, kind = None, None
         if gt_mesh is not None:
-            g = mesh_m.sample_mesh(gt_mesh, mesh_samples, seed=seed + 1)
+            g = mesh_m.sample_mesh(gt_mesh, mesh_samples, seed=1)
             ref, kind = g.subset(mesh_m.cull_observed(g.points, cams)), "gt_mesh"
         elif builder is not None:
             ref, kind = builder.build(), "gt_depth_points"
         if ref is not None and len(ref.points):
             say(f"mesh against the {'GT mesh' if kind == 'gt_mesh' else 'GT depth points'} ({len(ref.points)} points)")
-            est = mesh_m.sample_mesh(est_mesh, mesh_samples, seed=seed)  # estimate world
-            rep.mesh_pose_aligned = _mesh_report(est, align, ref, threshold, kind)
+            est = mesh_m.sample_mesh(est_mesh, mesh_samples, seed=0)  # estimate world
+            rep.mesh_pose_aligned = _mesh_report(est, align, ref, kind)
             if ref.normals is not None and registration.pins_similarity(ref.points, ref.normals):
-                icp = registration.icp_sim3(est.points, ref.points, align, seed=seed)
+                icp = registration.icp_sim3(est.points, ref.points, align)
                 if registration.scale_change_trusted(align, icp):
                     scene, rep.scene_alignment = icp, "icp"
             # Without a trusted registration the scene metrics are the trajectory-aligned ones: no second pass.
-            rep.mesh = replace(rep.mesh_pose_aligned) if scene is align else _mesh_report(est, scene, ref, threshold, kind)
+            rep.mesh = replace(rep.mesh_pose_aligned) if scene is align else _mesh_report(est, scene, ref, kind)
     if scene is not None:
         rep.scene_scale = scene.scale
         rep.scene_alignment = rep.scene_alignment or "poses"
@@ -232,9 +220,9 @@ def evaluate_output_dir(
     return rep
 
 
-def _mesh_report(est: mesh_m.SurfaceSamples, a: trajectory.Sim3, ref: mesh_m.SurfaceSamples, threshold: float,
+def _mesh_report(est: mesh_m.SurfaceSamples, a: trajectory.Sim3, ref: mesh_m.SurfaceSamples,
                  kind: str) -> od.MeshReport:
     """Mesh metrics of estimate samples (estimate world) moved into the GT world by `a`."""
     normals = None if est.normals is None else est.normals @ a.R.T
-    m = mesh_m.mesh_metrics(mesh_m.SurfaceSamples(a.apply_points(est.points), normals), ref, threshold)
-    return od.MeshReport(m.acc_m, m.comp_m, m.comp_ratio, m.normal_consistency, kind)
+    moved = mesh_m.SurfaceSamples(a.apply_points(est.points), normals)
+    return replace(mesh_m.mesh_metrics(moved, ref), reference=kind)

@@ -14,6 +14,7 @@ from scipy.spatial import cKDTree
 
 from nicer_stream.geometry.camera import in_image, project
 from nicer_stream.geometry.se3 import invert, transform_points
+from nicer_stream.io.output_dir import MeshReport
 from nicer_stream.types import Intrinsics
 
 COMPLETION_THRESHOLD_M = 0.05
@@ -31,18 +32,6 @@ class SurfaceSamples:
         return SurfaceSamples(self.points[mask], None if self.normals is None else self.normals[mask])
 
 
-@dataclass(frozen=True)
-class MeshMetrics:
-    """acc_m: mean distance estimate -> GT; comp_m: mean GT -> estimate (metres);
-    comp_ratio: fraction in [0, 1] of GT samples closer than the threshold to the estimate;
-    normal_consistency: mean |n_est . n_gt| of nearest neighbours, both directions (None without normals)."""
-
-    acc_m: float
-    comp_m: float
-    comp_ratio: float
-    normal_consistency: float | None
-
-
 def sample_mesh(mesh: trimesh.Trimesh, n: int = 200_000, seed: int = 0) -> SurfaceSamples:
     """`n` area-uniform random samples on the mesh surface with their face normals."""
     if len(mesh.faces) == 0:
@@ -51,8 +40,12 @@ def sample_mesh(mesh: trimesh.Trimesh, n: int = 200_000, seed: int = 0) -> Surfa
     return SurfaceSamples(np.asarray(pts, np.float64), np.asarray(mesh.face_normals[face], np.float64))
 
 
-def mesh_metrics(est: SurfaceSamples, gt: SurfaceSamples, threshold: float = COMPLETION_THRESHOLD_M) -> MeshMetrics:
-    """Accuracy / completion / completion ratio / normal consistency of `est` against `gt`."""
+def mesh_metrics(est: SurfaceSamples, gt: SurfaceSamples, threshold: float = COMPLETION_THRESHOLD_M
+                 ) -> MeshReport:
+    """Accuracy / completion / completion ratio / normal consistency of `est` against `gt` (no `reference`):
+    acc_m: mean distance estimate -> GT; comp_m: mean GT -> estimate (metres); comp_ratio: fraction
+    in [0, 1] of GT samples closer than the threshold to the estimate; normal_consistency: mean
+    |n_est . n_gt| of nearest neighbours, both directions (None without normals)."""
     if len(est.points) == 0 or len(gt.points) == 0:
         raise ValueError("mesh metrics need non-empty estimate and reference samples")
     d_est, i_est = cKDTree(gt.points).query(est.points, workers=-1)  # est -> nearest GT
@@ -63,7 +56,7 @@ def mesh_metrics(est: SurfaceSamples, gt: SurfaceSamples, threshold: float = COM
         nc_acc = np.abs((est.normals * gt.normals[i_est]).sum(1)).mean()
         nc_comp = np.abs((gt.normals * est.normals[i_gt]).sum(1)).mean()
         nc = float(0.5 * (nc_acc + nc_comp))
-    return MeshMetrics(
+    return MeshReport(
         acc_m=float(d_est.mean()),
         comp_m=float(d_gt.mean()),
         comp_ratio=float((d_gt < threshold).mean()),

@@ -8,10 +8,9 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-import torch
 
 from nicer_stream.eval.mesh import SurfaceSamples
-from nicer_stream.geometry.camera import pixel_grid, unproject
+from nicer_stream.geometry.depth_normals import unproject_depth
 from nicer_stream.types import Intrinsics
 
 DEFAULT_VOXEL_M = 0.02
@@ -19,13 +18,6 @@ MAX_POINTS_PER_FRAME = 200_000
 DEPTH_MAX_SIDE = 400
 """GT depth is first downsampled (nearest) to this longer side: at 400 px a pixel
 covers well under a 2 cm voxel up to ~5 m, and full-size frames cost ~1 s each."""
-
-
-def depth_to_points(depth: np.ndarray, intr: Intrinsics) -> np.ndarray:
-    """(H, W) z-depth -> (H, W, 3) float64 camera-frame points (OpenCV axes); invalid pixels give z = 0."""
-    uv = pixel_grid(intr, dtype=torch.float64)
-    d = torch.from_numpy(np.asarray(depth, np.float64).reshape(-1))
-    return unproject(uv, d, intr).numpy().reshape(intr.height, intr.width, 3)
 
 
 def normals_from_points(P: np.ndarray, depth: np.ndarray, max_rel_jump: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
@@ -92,7 +84,7 @@ def shrink_depth(depth: np.ndarray, intr: Intrinsics, max_side: int = DEPTH_MAX_
 def frame_points(depth: np.ndarray, intr: Intrinsics, T_world_cam: np.ndarray, voxel: float) -> SurfaceSamples:
     """World points and normals of one GT depth frame, voxel-downsampled."""
     depth, intr = shrink_depth(np.asarray(depth, np.float32), intr)
-    P = depth_to_points(depth, intr)
+    P = unproject_depth(depth, intr)  # invalid pixels give z = 0
     n, valid = normals_from_points(P, np.asarray(depth, np.float64))
     idx = np.flatnonzero(valid)
     if len(idx) > MAX_POINTS_PER_FRAME:  # bound memory/time on large images

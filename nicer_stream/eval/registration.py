@@ -49,16 +49,8 @@ def scale_change_trusted(init: Sim3, refined: Sim3, max_change: float = MAX_SCAL
     return abs(np.log(refined.scale / init.scale)) <= np.log(max_change)
 
 
-def icp_sim3(
-    src: np.ndarray,
-    dst: np.ndarray,
-    init: Sim3,
-    distances_m: tuple[float, ...] = ICP_DISTANCES_M,
-    iterations: int = ICP_ITERATIONS,
-    max_points: int = ICP_MAX_POINTS,
-    seed: int = 0,
-) -> Sim3:
-    """Sim(3) with dst ~ s R src + t, refined from `init` by point-to-point ICP.
+def icp_sim3(src: np.ndarray, dst: np.ndarray, init: Sim3, seed: int = 0) -> Sim3:
+    """Sim(3) with dst ~ s R src + t, refined from `init` by point-to-point ICP (ICP_* above).
 
     src: (N, 3) estimate surface samples (estimate world), dst: (M, 3) GT samples (GT world).
     Each iteration pairs every src point with its nearest dst point, keeps the pairs
@@ -67,12 +59,12 @@ def icp_sim3(
     than 3 pairs survive, i.e. when the surfaces do not overlap.
     """
     src, dst = np.asarray(src, np.float64), np.asarray(dst, np.float64)
-    if len(src) > max_points:
-        src = src[np.random.default_rng(seed).choice(len(src), max_points, replace=False)]
+    if len(src) > ICP_MAX_POINTS:
+        src = src[np.random.default_rng(seed).choice(len(src), ICP_MAX_POINTS, replace=False)]
     tree = cKDTree(dst)
     current = init
-    for radius in distances_m:
-        for _ in range(iterations):
+    for radius in ICP_DISTANCES_M:
+        for _ in range(ICP_ITERATIONS):
             moved = current.apply_points(src)
             d, j = tree.query(moved, distance_upper_bound=radius, workers=-1)
             keep = np.isfinite(d)

@@ -33,18 +33,9 @@ def _taylor_coeffs(theta2: torch.Tensor):
     return a, b, c
 
 
-def so3_exp(phi: torch.Tensor) -> torch.Tensor:
-    """(..., 3) axis-angle -> (..., 3, 3) rotation matrix (Rodrigues)."""
-    theta2 = (phi * phi).sum(-1)[..., None, None]
-    a, b, _ = _taylor_coeffs(theta2)
-    K = skew(phi)
-    eye = torch.eye(3, dtype=phi.dtype, device=phi.device).expand(K.shape)
-    return eye + a * K + b * (K @ K)
-
-
 def so3_exp_np(w: np.ndarray) -> np.ndarray:
     """numpy: (N, 3) rotation vectors -> (N, 3, 3) rotation matrices (Rodrigues, float64), for the
-    frontend's bundle adjustment. Not `so3_exp` through torch: its last-bit rounding differs and
+    frontend's bundle adjustment. Not through torch (`se3_exp`): its last-bit rounding differs and
     the adjustment's iterations carry that into the poses (0.4 mm on the synthetic room)."""
     th = np.linalg.norm(w, axis=1)[:, None, None]
     K = skew(torch.from_numpy(w / np.maximum(th[:, :, 0], 1e-12))).numpy()

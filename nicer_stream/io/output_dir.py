@@ -170,10 +170,11 @@ def _finite_or_null(x: Any) -> Any:
     return x
 
 
-def _write_json(path: Path, data: dict) -> None:
+def _write_json(path: Path, data: dict) -> Path:
     tmp = path.with_suffix(path.suffix + ".tmp")
     tmp.write_text(json.dumps(_finite_or_null(data), indent=2, allow_nan=False) + "\n")
     tmp.replace(path)  # atomic: readers never see half a file
+    return path
 
 
 def _read_json(path: Path) -> dict:
@@ -189,48 +190,38 @@ def _read_json(path: Path) -> dict:
 
 
 def _build(cls, data: dict, path: Path):
-    """cls(**known keys of data); UserError naming the missing required keys."""
+    """cls(**known keys of data), the nested sections (`_NESTED`) built likewise; UserError naming
+    the missing required keys."""
     names = {f.name for f in fields(cls)}
+    known = {k: _build(_NESTED[k], v, path) if k in _NESTED and isinstance(v, dict) else v
+             for k, v in data.items() if k in names}
     try:
-        return cls(**{k: v for k, v in data.items() if k in names})
+        return cls(**known)
     except TypeError as e:
         raise UserError(f"{path}: {e} (missing or malformed keys): rewrite the file") from None
 
 
+_NESTED = {"stages_s": StageSeconds, "bound": Bound, "evaluated_views": EvaluatedViews, "mesh": MeshReport,
+           "mesh_pose_aligned": MeshReport, "heldout": HeldOutReport}
+
+
 def write_summary(out_dir: str | Path, summary: Summary) -> Path:
     """Write OUT/summary.json; returns its path."""
-    path = Path(out_dir) / SUMMARY_FILE
-    _write_json(path, asdict(summary))
-    return path
+    return _write_json(Path(out_dir) / SUMMARY_FILE, asdict(summary))
 
 
 def read_summary(out_dir: str | Path) -> Summary:
     """Read OUT/summary.json (unknown keys ignored). Raises UserError if missing or malformed."""
     path = Path(out_dir) / SUMMARY_FILE
-    data = _read_json(path)
-    if isinstance(data.get("stages_s"), dict):
-        data["stages_s"] = _build(StageSeconds, data["stages_s"], path)
-    if isinstance(data.get("bound"), dict):
-        data["bound"] = _build(Bound, data["bound"], path)
-    return _build(Summary, data, path)
+    return _build(Summary, _read_json(path), path)
 
 
 def write_eval(out_dir: str | Path, report: EvalReport) -> Path:
     """Write OUT/eval.json; returns its path."""
-    path = Path(out_dir) / EVAL_FILE
-    _write_json(path, asdict(report))
-    return path
+    return _write_json(Path(out_dir) / EVAL_FILE, asdict(report))
 
 
 def read_eval(out_dir: str | Path) -> EvalReport:
     """Read OUT/eval.json. Raises UserError if missing or malformed."""
     path = Path(out_dir) / EVAL_FILE
-    data = _read_json(path)
-    if isinstance(data.get("evaluated_views"), dict):
-        data["evaluated_views"] = _build(EvaluatedViews, data["evaluated_views"], path)
-    for key in ("mesh", "mesh_pose_aligned"):
-        if isinstance(data.get(key), dict):
-            data[key] = _build(MeshReport, data[key], path)
-    if isinstance(data.get("heldout"), dict):
-        data["heldout"] = _build(HeldOutReport, data["heldout"], path)
-    return _build(EvalReport, data, path)
+    return _build(EvalReport, _read_json(path), path)

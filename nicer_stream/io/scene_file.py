@@ -1,6 +1,7 @@
 """scene.pt: the fitted scene (config, bound, model and beta-counter state) for re-rendering."""
 from __future__ import annotations
 
+from dataclasses import asdict
 from pathlib import Path
 
 import torch
@@ -17,7 +18,7 @@ SCENE_FILE = "scene.pt"
 
 def save_scene(out_dir: Path, cfg: SlamConfig, model: SceneModel, beta: BetaField) -> Path:
     path = Path(out_dir) / SCENE_FILE
-    torch.save({"config": config_mod.to_dict(cfg), "bound": model.bound.to_dict(),
+    torch.save({"config": asdict(cfg), "bound": model.bound.to_dict(),
                 "model": model.state_dict(), "beta": beta.state_dict()}, path)
     return path
 

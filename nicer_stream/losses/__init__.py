@@ -1,5 +1,5 @@
 """Mapping losses of NICER-SLAM (paper Sec. 3.3). Per-ray inputs are (N, ...) tensors."""
-from nicer_stream.losses.eikonal import eikonal_loss, sdf_gradient
+from nicer_stream.losses.eikonal import eikonal_loss
 from nicer_stream.losses.flow import flow_loss
 from nicer_stream.losses.mono_depth import mono_depth_loss, scale_shift_lstsq
 from nicer_stream.losses.normal import normal_loss
@@ -18,7 +18,6 @@ __all__ = [
     "normal_loss",
     "rgb_l1",
     "scale_shift_lstsq",
-    "sdf_gradient",
     "total_loss",
     "warp_pixels",
     "warping_loss",

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import random
+import time
 from dataclasses import dataclass
 
 import torch
@@ -104,8 +105,6 @@ class Mapper:
         `stop()`, polled before each iteration, ends the call early (stats count the
         iterations done). `lr_end`: the scene's learning rates fall from their base to this
         fraction of it over the call (a cosine); 1: constant."""
-        import time
-
         t0 = time.perf_counter()
         m = self.cfg.mapping
         color_start = m.ba_start if color_start is None else color_start

@@ -7,7 +7,7 @@ import torch
 
 from nicer_stream.config import LossConfig
 from nicer_stream.losses import (
-    LossTerms, bilinear_sample, eikonal_loss, flow_loss, mono_depth_loss, normal_loss, rgb_l1, warp_pixels, warping_loss,
+    LossTerms, eikonal_loss, flow_loss, mono_depth_loss, normal_loss, rgb_l1, warp_pixels, warping_loss,
 )
 from nicer_stream.losses.brightness import apply_brightness
 from nicer_stream.mapping.ray_sampling import FrameRays

@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import torch
 
-from nicer_stream.geometry.camera import camera_dirs
+from nicer_stream.geometry.camera import camera_dirs, pixel_grid
 from nicer_stream.geometry.se3 import invert
+from nicer_stream.render.renderer import render_rays, rays_for_pixels
 from nicer_stream.types import Intrinsics
 
 
@@ -61,8 +62,6 @@ def align_frame_prior(frame, partner, T_world_src: torch.Tensor, T_world_dst: to
     """(w, q) of `frame.depth_prior` (a MapFrame) from its flow to `partner` and both poses, or None."""
     if frame.depth_prior is None or partner.index not in frame.flows:
         return None
-    from nicer_stream.geometry.camera import pixel_grid
-
     flow, valid = frame.flows[partner.index]
     uv = pixel_grid(frame.intr, device=flow.device).double()
     z, ok = triangulate_depth(uv, uv + flow.reshape(-1, 2).double(), frame.intr, partner.intr,
@@ -89,9 +88,6 @@ def align_prior_to_map(frame, T_world_cam: torch.Tensor, model, beta, render_cfg
     at `T_world_cam` on every `step`-th pixel, or None. Fixing them once when a frame is
     first mapped keeps every frame at the map's scale (the per-iteration fit of Eq. 10
     lets scale and shift follow whatever the rendered depth does)."""
-    from nicer_stream.geometry.camera import pixel_grid
-    from nicer_stream.render.renderer import render_rays, rays_for_pixels
-
     if frame.depth_prior is None:
         return None
     h, w = frame.intr.height, frame.intr.width

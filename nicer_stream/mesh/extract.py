@@ -15,7 +15,7 @@ from skimage.measure import marching_cubes
 from nicer_stream.errors import UserError
 from nicer_stream.geometry.camera import in_image, project
 from nicer_stream.geometry.se3 import invert, transform_points
-from nicer_stream.mesh.sparse_grid import JumpFn, SdfFn, evaluate_grid, evaluate_grid_sparse
+from nicer_stream.mesh.sparse_grid import JumpFn, SdfFn, evaluate_grid_sparse
 from nicer_stream.types import Intrinsics
 
 ColorFn = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
@@ -32,14 +32,13 @@ def _grid_axes(bound_min, bound_max, resolution: int) -> list[np.ndarray]:
     return [np.linspace(lo[i], hi[i], resolution) for i in range(3)]
 
 
-def _vertex_colors(color_fn: ColorFn, mesh: trimesh.Trimesh, chunk: int, device) -> np.ndarray:
+def _vertex_colors(color_fn: ColorFn, mesh: trimesh.Trimesh, chunk: int) -> np.ndarray:
     """(V, 3) uint8 colours of color_fn at the vertices with the mesh's vertex normals."""
-    verts = torch.as_tensor(mesh.vertices, dtype=torch.float32, device=device)
-    normals = torch.tensor(np.array(mesh.vertex_normals), dtype=torch.float32, device=device)
-    parts = []
+    verts = torch.as_tensor(mesh.vertices, dtype=torch.float32)
+    normals = torch.tensor(np.array(mesh.vertex_normals), dtype=torch.float32)
     with torch.no_grad():
-        for s in range(0, len(verts), chunk):
-            parts.append(color_fn(verts[s : s + chunk], normals[s : s + chunk]).float().cpu())
+        parts = [color_fn(verts[s : s + chunk], normals[s : s + chunk]).float().cpu()
+                 for s in range(0, len(verts), chunk)]
     rgb = torch.cat(parts).clamp(0, 1).numpy()
     return np.round(rgb * 255.0).astype(np.uint8)
 
@@ -51,8 +50,6 @@ def extract_mesh(
     bound_max,
     resolution: int,
     chunk: int = 65536,
-    device=None,
-    sparse: bool = True,
     jump_fn: JumpFn | None = None,
 ) -> trimesh.Trimesh:
     """Zero level set of `sdf_fn` inside the box [bound_min, bound_max].
@@ -62,16 +59,14 @@ def extract_mesh(
         [0, 1], or None for no colours.
     bound_min, bound_max: (3,) box corners; resolution: samples per axis (the
         voxel size is extent / (resolution - 1)); chunk: points per call.
-    sparse: evaluate sdf_fn coarse to fine, densely only near its zero
-        crossings (`sparse_grid.evaluate_grid_sparse`: a fraction of the
-        resolution^3 calls), assuming sdf_fn is L-Lipschitz with L < 4 (a
-        learnt SDF is about 1) inside every box jump_fn clears. False: at
-        every grid point, the reference.
+    sdf_fn is evaluated coarse to fine, densely only near its zero crossings
+        (`sparse_grid.evaluate_grid_sparse`: a fraction of the resolution^3
+        calls), assuming it is L-Lipschitz with L < 4 (a learnt SDF is about 1)
+        inside every box jump_fn clears.
     jump_fn: boxes lo (B, 3), hi (B, 3) -> (B,) bool, True where sdf_fn may
         be discontinuous inside [lo, hi] (e.g. a constant outside observed
         voxels: boxes holding observed and unobserved ones), which the sparse
-        grid then evaluates densely; None: sdf_fn is continuous. Unused when
-        sparse is False.
+        grid then evaluates densely; None: sdf_fn is continuous.
     Returns a mesh with world-coordinate vertices, outward-facing faces and
     uint8 vertex colours; an empty mesh when the SDF has no zero crossing.
     Both paths give the same mesh under that assumption, except next to
@@ -80,10 +75,7 @@ def extract_mesh(
     edges can sit elsewhere along the edge.
     """
     axes = _grid_axes(bound_min, bound_max, resolution)
-    if sparse:
-        volume = evaluate_grid_sparse(sdf_fn, axes, chunk, device, jump_fn=jump_fn)
-    else:
-        volume = evaluate_grid(sdf_fn, axes, chunk, device)
+    volume = evaluate_grid_sparse(sdf_fn, axes, chunk, None, jump_fn=jump_fn)
     finite = volume[np.isfinite(volume)]
     if finite.size == 0 or finite.min() >= 0 or finite.max() <= 0:
         return trimesh.Trimesh()
@@ -96,7 +88,7 @@ def extract_mesh(
     verts = verts.astype(np.float64) + np.array([a[0] for a in axes])
     mesh = trimesh.Trimesh(vertices=verts, faces=faces, process=False)
     if color_fn is not None:
-        mesh.visual.vertex_colors = _vertex_colors(color_fn, mesh, chunk, device)
+        mesh.visual.vertex_colors = _vertex_colors(color_fn, mesh, chunk)
     return mesh
 
 

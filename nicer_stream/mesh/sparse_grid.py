@@ -1,4 +1,4 @@
-"""SDF sample grids for marching cubes: every point (the reference), or coarse to fine near the surface.
+"""The SDF sample grid for marching cubes, coarse to fine near the surface (the tests hold the dense one).
 
 A grid is three (R_a,) float64 axes (world coordinates, evenly spaced, ends included) and a
 volume (R_x, R_y, R_z) float32 with volume[i, j, k] = sdf(x_i, y_j, z_k).
@@ -57,22 +57,6 @@ def _sdf_values(sdf_fn: SdfFn, pts: torch.Tensor, chunk: int) -> np.ndarray:
 def _points(ax: list[torch.Tensor], ijk) -> torch.Tensor:
     """(N, 3) points at index arrays (i, j, k), each (N,), into the axes `ax`."""
     return torch.stack([a[torch.as_tensor(i, device=a.device)] for a, i in zip(ax, ijk)], dim=-1)
-
-
-def evaluate_grid(sdf_fn: SdfFn, axes: list[np.ndarray], chunk: int, device) -> np.ndarray:
-    """(R_x, R_y, R_z) float32 volume of sdf_fn at every grid point (the reference)."""
-    shape = tuple(len(a) for a in axes)
-    ax = [torch.as_tensor(a, dtype=torch.float32, device=device) for a in axes]
-    out = np.empty(shape, dtype=np.float32)
-    # Points are built a few x-planes at a time: a full (R^3, 3) array would
-    # need 1.6 GB at R = 512.
-    planes = max(1, chunk // (shape[1] * shape[2]))
-    with torch.no_grad():
-        for i0 in range(0, shape[0], planes):
-            i1 = min(i0 + planes, shape[0])
-            pts = torch.stack(torch.meshgrid(ax[0][i0:i1], ax[1], ax[2], indexing="ij"), dim=-1).reshape(-1, 3)
-            out[i0:i1] = _sdf_values(sdf_fn, pts, chunk).reshape(i1 - i0, *shape[1:])
-    return out
 
 
 def _lattice(n: int, step: int) -> np.ndarray:
@@ -144,7 +128,7 @@ def _refine(sdf_fn: SdfFn, v: np.ndarray, active: np.ndarray, axes: list[_Refine
     need = rx.expand(active, 0)
     out = np.empty((len(rx.fine), len(ry.fine), len(rz.fine)), dtype=np.float32)
     old = ry.on_coarse[:, None] & rz.on_coarse[None, :]
-    # A few x-planes at a time, as evaluate_grid, bounds the memory at R = 512.
+    # A few x-planes at a time bounds the memory (a full (R^3, 3) array of points: 1.6 GB at R = 512).
     planes = max(1, 4 * chunk // (out.shape[1] * out.shape[2]))
     for i0 in range(0, len(out), planes):
         i1 = min(i0 + planes, len(out))
@@ -165,7 +149,7 @@ def evaluate_grid_sparse(
     margin: float = MARGIN,
     jump_fn: JumpFn | None = None,
 ) -> np.ndarray:
-    """(R_x, R_y, R_z) float32 volume like `evaluate_grid`'s, sdf_fn evaluated coarse to fine
+    """(R_x, R_y, R_z) float32 volume of sdf_fn at the grid points, evaluated coarse to fine
     only near its zero crossings (see the module docstring); trilinear elsewhere.
 
     block: the first lattice's step, a power of two (1: the dense grid). margin: in block

@@ -85,10 +85,5 @@ def encoding_grad(enc: torch.Tensor, u: torch.Tensor, levels: int, d: int = 3) -
     return u[:, :d] + ((c * u_s - s * u_c) * freqs[:, None]).sum(1)
 
 
-def kernel_available(t: torch.Tensor) -> bool:
-    """True when `t` can go through the compiled encoding."""
-    return ENCODING_KERNEL.available(t)
-
-
 if __name__ == "__main__":  # `make setup` builds the kernel once, so the first run does not wait for it
-    print("encoding kernel:", "built" if kernel_available(torch.zeros(1)) else "not available (pure-torch path)")
+    print("encoding kernel:", "built" if ENCODING_KERNEL.available(torch.zeros(1)) else "not available (pure-torch path)")

@@ -1,6 +1,6 @@
 """The SDF MLP's value and input gradient by reverse mode, forward and backward in one node.
 
-Forward mode (`GeometryMLP.reference_forward`) pushes three tangent rows through every layer,
+Forward mode (the tests' `reference_forward`) pushes three tangent rows through every layer,
 and its backward all four rows again: 12 row-products per layer. Only the tangent of output 0
 (the SDF) is ever used, so one reverse sweep gives it instead: u = d out_0 / d h (N, in). The
 caller contracts u with its inputs' Jacobians (grad = J u), part by part and without
@@ -14,7 +14,7 @@ Its adjoint (bar = dL/d.), upwards from ubar_0 (the gradient arriving at u_0):
     zbar_i += vbar_i * u_{i+1} * beta s_i (1 - s_i),  Wbar_{n-1}[0] += sum ubar_{n-1};
 then the value path downwards as usual (zbar_i += hbar_{i+1} * s_i).
 
-The reference is `GeometryMLP.reference_forward` (its tangent's column 0, against J u_0); tests
+The reference is the tests' `reference_forward` (its tangent's column 0, against J u_0); tests
 compare values and gradients and run gradcheck in float64.
 """
 from __future__ import annotations

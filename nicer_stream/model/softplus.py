@@ -9,7 +9,7 @@ from nicer_stream.model.cpp_kernel import CppKernel
 from nicer_stream.numerics import exp_neg
 
 SOFTPLUS_BETA = 100.0  # VolSDF/MonoSDF geometry activation
-_KERNEL = CppKernel("nicer_stream_softplus", "softplus.cpp", ["-O3", "-fopenmp", "-ffast-math", "-march=native"])
+SOFTPLUS_KERNEL = CppKernel("nicer_stream_softplus", "softplus.cpp", ["-O3", "-fopenmp", "-ffast-math", "-march=native"])
 
 
 def _graph_free(z: torch.Tensor) -> bool:
@@ -19,16 +19,16 @@ def _graph_free(z: torch.Tensor) -> bool:
 def softplus_beta(z: torch.Tensor, beta: float = SOFTPLUS_BETA) -> torch.Tensor:
     """softplus(beta z) / beta, any shape. Differentiable when `z` needs a graph (the reference
     form); else the compiled pass when it is available."""
-    if _graph_free(z) and _KERNEL.available(z):
-        return _KERNEL.module().softplus_sigmoid(z, beta, False)[0]
+    if _graph_free(z) and SOFTPLUS_KERNEL.available(z):
+        return SOFTPLUS_KERNEL.module().softplus_sigmoid(z, beta, False)[0]
     return softplus_beta_reference(z, beta)
 
 
 def softplus_and_sigmoid(z: torch.Tensor, beta: float = SOFTPLUS_BETA) -> tuple[torch.Tensor, torch.Tensor]:
     """(softplus(beta z) / beta, sigmoid(beta z)), both shaped like `z`, without autograd (for
     custom Functions' forwards and no-grad passes)."""
-    if _KERNEL.available(z):
-        sp, s = _KERNEL.module().softplus_sigmoid(z.detach(), beta, True)
+    if SOFTPLUS_KERNEL.available(z):
+        sp, s = SOFTPLUS_KERNEL.module().softplus_sigmoid(z.detach(), beta, True)
         return sp, s
     z = z.detach()
     return softplus_beta_reference(z, beta), torch.sigmoid(z * beta)
@@ -38,8 +38,8 @@ def sweep_adjoint(vbar: torch.Tensor, u: torch.Tensor, s: torch.Tensor,
                   beta: float = SOFTPLUS_BETA) -> tuple[torch.Tensor, torch.Tensor]:
     """One layer of the SDF-gradient sweep's adjoint (`sdf_grad_mlp.py`), all (N, H):
     (ubar, zbar) = (vbar s, vbar u beta s (1 - s)); one compiled pass where available."""
-    if _KERNEL.available(vbar) and vbar.dtype == u.dtype == s.dtype:
-        ubar, zbar = _KERNEL.module().sweep_adjoint(vbar, u, s, beta)
+    if SOFTPLUS_KERNEL.available(vbar) and vbar.dtype == u.dtype == s.dtype:
+        ubar, zbar = SOFTPLUS_KERNEL.module().sweep_adjoint(vbar, u, s, beta)
         return ubar, zbar
     return sweep_adjoint_reference(vbar, u, s, beta)
 
@@ -61,10 +61,5 @@ def softplus_beta_reference(z: torch.Tensor, beta: float = SOFTPLUS_BETA) -> tor
     return (torch.relu(bz) + torch.log(1 + exp_neg(bz.abs()))) / beta
 
 
-def kernel_available(t: torch.Tensor) -> bool:
-    """True when `t` can go through the compiled pass."""
-    return _KERNEL.available(t)
-
-
 if __name__ == "__main__":  # `make setup` builds the kernel once, so the first run does not wait for it
-    print("softplus kernel:", "built" if kernel_available(torch.zeros(1)) else "not available (pure-torch path)")
+    print("softplus kernel:", "built" if SOFTPLUS_KERNEL.available(torch.zeros(1)) else "not available (pure-torch path)")

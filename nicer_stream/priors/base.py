@@ -41,7 +41,8 @@ class DepthNormalProvider:
 
 
 class FlowProvider:
-    """Optical flow between two frames. `name` labels the outputs.
+    """Optical flow between two frames. `name` labels the outputs. A provider overrides `flow`,
+    or `flow_both` when it gets both directions at once (DIS, RAFT).
 
     `active` is False for the `none` provider: the engine then computes no flow.
     """
@@ -49,8 +50,9 @@ class FlowProvider:
     name: str = "abstract"
     active: bool = True
 
-    def flow(self, src: Frame, dst: Frame) -> FlowPrior:  # pragma: no cover - abstract
-        raise NotImplementedError
+    def flow(self, src: Frame, dst: Frame) -> FlowPrior:
+        """Flow src -> dst."""
+        return self.flow_both(src, dst)[0]
 
     def has(self, src: Frame, dst: Frame) -> bool:
         """Whether this provider can give the flow src -> dst (a cache holds only some pairs)."""

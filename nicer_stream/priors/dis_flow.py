@@ -9,15 +9,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from nicer_stream.grey import to_grey_u8
 from nicer_stream.priors.base import FlowProvider
 from nicer_stream.priors.flow_consistency import consistency_mask
 from nicer_stream.types import FlowPrior, Frame
-
-
-def to_gray_u8(rgb: np.ndarray) -> np.ndarray:
-    """(H, W, 3) float32 RGB in [0, 1] -> (H, W) uint8 grayscale (what DIS takes)."""
-    u8 = np.clip(rgb * 255.0 + 0.5, 0, 255).astype(np.uint8)
-    return cv2.cvtColor(u8, cv2.COLOR_RGB2GRAY)
 
 
 def dis_flow(gray_src: np.ndarray, gray_dst: np.ndarray, preset: int = cv2.DISOPTICAL_FLOW_PRESET_MEDIUM) -> np.ndarray:
@@ -35,14 +30,11 @@ class DisFlowProvider(FlowProvider):
         self.alpha = alpha
         self.beta = beta
 
-    def flow(self, src: Frame, dst: Frame) -> FlowPrior:
-        return self.flow_both(src, dst)[0]
-
     def flow_both(self, a: Frame, b: Frame) -> tuple[FlowPrior, FlowPrior]:
         if a.rgb.shape != b.rgb.shape:
             # DIS needs same-sized images; sources resize every frame alike.
             raise ValueError(f"frames {a.index} and {b.index} differ in size: {a.rgb.shape} vs {b.rgb.shape}")
-        ga, gb = to_gray_u8(a.rgb), to_gray_u8(b.rgb)
+        ga, gb = to_grey_u8(a.rgb), to_grey_u8(b.rgb)  # uint8: what DIS takes
         fw, bw = dis_flow(ga, gb), dis_flow(gb, ga)
         return (
             FlowPrior(a.index, b.index, fw, consistency_mask(fw, bw, self.alpha, self.beta)),

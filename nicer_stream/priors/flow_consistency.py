@@ -91,16 +91,8 @@ def motion_boundary_mask(
     return boundary
 
 
-def consistency_mask(
-    flow_fw: np.ndarray,
-    flow_bw: np.ndarray,
-    alpha: float = 0.005,
-    beta: float = 0.1,
-    boundary: bool = True,
-    boundary_a: float = BOUNDARY_A,
-    boundary_b: float = BOUNDARY_B,
-    boundary_radius: int = BOUNDARY_RADIUS,
-) -> np.ndarray:
+def consistency_mask(flow_fw: np.ndarray, flow_bw: np.ndarray, alpha: float = 0.005, beta: float = 0.1,
+                     boundary: bool = True) -> np.ndarray:
     """(H, W) bool: forward flow agrees with the backward flow, stays in the image and is off motion boundaries.
 
     flow_fw, flow_bw: (H, W, 2) float flows in pixels, source -> destination and back.
@@ -113,8 +105,8 @@ def consistency_mask(
     > 3 px errors instead of 37% with Sundaram's values, and 95% of the < 1 px flows
     (6% and 90% with the boundary rule below; tests/nicer_stream/priors/test_dis_flow.py).
 
-    With `boundary` (the default) pixels of `motion_boundary_mask(flow_fw, boundary_a,
-    boundary_b, boundary_radius)` are rejected as well: the round trip cannot see the
+    With `boundary` (the default) pixels of `motion_boundary_mask(flow_fw)` (BOUNDARY_A, _B,
+    _RADIUS) are rejected as well: the round trip cannot see the
     flow DIS smears across depth edges consistently in both directions. Measured with
     scripts/flow_benchmark.py --per-pair (DIS, 320 px): on the synthetic room's 6-apart
     pairs the mask keeps 0.5-17% of the > 3 px pixels instead of 4-68% (coverage 35-86%
@@ -128,5 +120,5 @@ def consistency_mask(
     bound = alpha * ((flow_fw**2).sum(-1) + (bw**2).sum(-1)) + beta
     mask = (err2 < bound) & in_image_mask(flow_fw)
     if boundary:
-        mask &= ~motion_boundary_mask(flow_fw, boundary_a, boundary_b, boundary_radius)
+        mask &= ~motion_boundary_mask(flow_fw)
     return mask

@@ -105,13 +105,8 @@ def pair_poses(k: int, partners: tuple[int, ...], poses: dict[int, torch.Tensor]
     depth depends only on its relative pose (10% of the baseline's parallax per 0.1 degree at
     the demo's ~25 cm baselines)."""
     T_k = poses[k].double().cpu().numpy()
-    out = {}
-    for p in partners:
-        if k in consistent and p in consistent:
-            out[p] = T_k @ np.linalg.inv(consistent[k]) @ consistent[p]
-        else:
-            out[p] = poses[p].double().cpu().numpy()
-    return out
+    return {p: T_k @ np.linalg.inv(consistent[k]) @ consistent[p] if k in consistent and p in consistent
+            else poses[p].double().cpu().numpy() for p in partners}
 
 
 def stereo_normals(depth: np.ndarray, intr) -> np.ndarray:
@@ -287,7 +282,4 @@ class StereoPriors:
         return f"{ok} of {n} {what}s{kept}"
 
     def _mark(self, index: int, fixed: bool) -> None:
-        if fixed:
-            self.fixed.add(index)
-        else:
-            self.fixed.discard(index)
+        (self.fixed.add if fixed else self.fixed.discard)(index)

@@ -44,15 +44,12 @@ def bilinear_weights(height: int, width: int, rows: int, cols: int) -> tuple[np.
 
 def _smoothness(rows: int, cols: int) -> np.ndarray:
     """(E, rows*cols) differences between neighbouring nodes (right and down)."""
-    out = []
-    for i in range(rows):
-        for j in range(cols):
-            for di, dj in ((0, 1), (1, 0)):
-                if i + di < rows and j + dj < cols:
-                    r = np.zeros(rows * cols)
-                    r[i * cols + j], r[(i + di) * cols + j + dj] = 1.0, -1.0
-                    out.append(r)
-    return np.array(out) if out else np.zeros((0, rows * cols))
+    ids = np.arange(rows * cols).reshape(rows, cols)
+    a = np.concatenate([ids[:, :-1].ravel(), ids[:-1].ravel()])  # each node and its right / lower neighbour
+    b = np.concatenate([ids[:, 1:].ravel(), ids[1:].ravel()])
+    out = np.zeros((len(a), rows * cols))
+    out[np.arange(len(a)), a], out[np.arange(len(a)), b] = 1.0, -1.0
+    return out
 
 
 def align_depth(mono: np.ndarray, metric: np.ndarray, cells: int = 7, smooth: float = 1e-4,

@@ -37,7 +37,8 @@ from nicer_stream.errors import UserError
 from nicer_stream.geometry.camera import in_image, pixel_grid, project, unproject
 from nicer_stream.geometry.se3 import invert, transform_points
 from nicer_stream.priors.base import DepthNormal, DepthNormalProvider, FlowProvider
-from nicer_stream.geometry.depth_normals import fill_nearest, normals_from_depth, orient_towards_camera
+from nicer_stream.geometry.depth_normals import (fill_nearest, normals_from_depth, orient_towards_camera,
+                                                unproject_depth)
 from nicer_stream.types import FlowPrior, Frame, Intrinsics
 
 _NEEDS_GT = (
@@ -111,11 +112,10 @@ def scene_field(points: np.ndarray, seed: int, stream: int, length_m: float, cha
 
 def world_points(depth: np.ndarray, intr: Intrinsics, T_world_cam: np.ndarray | None) -> np.ndarray:
     """(H, W) z-depth -> (H, W, 3) points in the world frame (the camera's without a pose)."""
-    uv = pixel_grid(intr, dtype=torch.float64)
-    p = unproject(uv, torch.from_numpy(depth.astype(np.float64)).reshape(-1), intr)
+    p = torch.from_numpy(unproject_depth(depth, intr))
     if T_world_cam is not None:
         p = transform_points(torch.from_numpy(np.asarray(T_world_cam, dtype=np.float64)), p)
-    return p.reshape(*depth.shape, 3).numpy()
+    return p.numpy()
 
 
 def fill_invalid_nearest(depth: np.ndarray) -> np.ndarray:
@@ -236,7 +236,6 @@ class OracleFlow(FlowProvider):
                 raise UserError(_NEEDS_GT.format(what="poses", index=f.index))
         if src.gt_depth is None:
             raise UserError(_NEEDS_GT.format(what="depth", index=src.index))
-        flow, valid = flow_from_depth_pose(
-            src.gt_depth, src.gt_pose, src.intrinsics, dst.gt_pose, dst.intrinsics, dst.gt_depth, self.occlusion_tol
-        )
-        return FlowPrior(src.index, dst.index, flow, valid)
+        return FlowPrior(src.index, dst.index, *flow_from_depth_pose(src.gt_depth, src.gt_pose, src.intrinsics,
+                                                                     dst.gt_pose, dst.intrinsics, dst.gt_depth,
+                                                                     self.occlusion_tol))

@@ -43,9 +43,6 @@ class RaftFlowProvider(FlowProvider):
         self.transforms = weights.transforms()
         self.iters, self.alpha, self.beta = iters, alpha, beta
 
-    def flow(self, src: Frame, dst: Frame) -> FlowPrior:
-        return self.flow_both(src, dst)[0]
-
     @torch.no_grad()
     def flow_both(self, a: Frame, b: Frame) -> tuple[FlowPrior, FlowPrior]:
         ta = torch.from_numpy(np.ascontiguousarray(a.rgb)).permute(2, 0, 1)[None]

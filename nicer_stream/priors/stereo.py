@@ -26,8 +26,8 @@ import numpy as np
 
 from nicer_stream.config import StereoConfig
 from nicer_stream.grey import to_grey_f32
-from nicer_stream.priors.base import DepthNormal, DepthNormalProvider
-from nicer_stream.types import Frame, Intrinsics
+from nicer_stream.priors.base import NoDepthNormal
+from nicer_stream.types import Intrinsics
 
 
 def shrink_depth(depth: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -244,12 +244,9 @@ def sweep_depth(ref_rgb: np.ndarray, T_world_ref: np.ndarray, partners: list[tup
     return drop_depth_edges(depth, params.edge_window, params.edge_rel)
 
 
-class StereoDepthNormal(DepthNormalProvider):
+class StereoDepthNormal(NoDepthNormal):
     """`--priors stereo`: nothing per frame; the SLAM computes each keyframe's depth and normals
     by plane sweep once it has posed neighbours (`priors/keyframe_stereo.py`)."""
 
     name = "stereo"
     description = "stereo (plane-sweep depth from keyframes and the SLAM's own poses; no ground truth, no weights)"
-
-    def predict(self, frame: Frame) -> DepthNormal:
-        return DepthNormal(depth=None, normal=None)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from nicer_stream.errors import UserError, one_line
 from nicer_stream.io import output_dir as od
-from nicer_stream.runtime.slam_run import RunRequest
+from nicer_stream.runtime.slam_run import RunRequest, run_slam
 
 BATCH_FILE = "batch.json"
 PID_FILE = ".worker.pid"  # the process running a source (for tests and for users who need to kill one)
@@ -124,15 +124,11 @@ def record_from_outputs(item: BatchItem, out_dir: Path, status: str, error: str 
     return rec
 
 
-def _default_request() -> RunRequest:
-    return RunRequest(source="", out_dir=Path())
-
-
 @dataclass(frozen=True)
 class RunOptions:
     """What every source of the batch gets."""
 
-    request: RunRequest = field(default_factory=_default_request)
+    request: RunRequest = field(default_factory=lambda: RunRequest(source="", out_dir=Path()))
     """The `run` request of each source, its source and output directory replaced (and quiet)."""
     evaluate: bool = True
     """Evaluate each output directory against the source's ground truth, where it has some."""
@@ -157,8 +153,6 @@ def per_source_sinks(specs: tuple[str, ...], out: Path) -> tuple[str, ...]:
 def run_one(item: BatchItem, root: str, opts: RunOptions) -> SourceRecord:
     """Run SLAM on one source into ROOT/name (quiet), evaluate it when it has ground truth, and
     return its row. Errors become the row's one-line error, never an exception."""
-    from nicer_stream.runtime.slam_run import run_slam
-
     out = Path(root) / item.name
     out.mkdir(parents=True, exist_ok=True)
     (out / PID_FILE).write_text(str(os.getpid()))

@@ -4,7 +4,6 @@ from __future__ import annotations
 import torch
 
 from nicer_stream.config import SlamConfig
-from nicer_stream.errors import UserError
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.priors import PriorEngine, make_depth_normal_provider, make_flow_provider
 from nicer_stream.types import Frame
@@ -24,10 +23,7 @@ def provider_names(engine: PriorEngine) -> list[str]:
 
 def map_frame(frame: Frame, engine: PriorEngine, flow_to: list[Frame], device) -> MapFrame:
     """Priors for `frame` (the oracle provider may read its GT) -> a MapFrame with GT removed."""
-    try:
-        pri = engine.priors(frame, flow_to)
-    except UserError:
-        raise
+    pri = engine.priors(frame, flow_to)
     return MapFrame.from_frame(frame.without_ground_truth(), pri, torch.device(device))
 
 

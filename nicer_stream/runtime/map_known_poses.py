@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +26,7 @@ from nicer_stream.runtime.run_outputs import write_mesh, write_summary, write_tr
 from nicer_stream.runtime.scene_export import save_render, scene_mesh
 from nicer_stream.runtime.stage_timer import StageTimer
 from nicer_stream.render.renderer import render_image
-from nicer_stream.runtime.source_setup import intrinsics_dict, open_configured
+from nicer_stream.runtime.source_setup import open_configured
 from nicer_stream.priors.keyframe_stereo import StereoPriors, fusion_params
 from sources.base import SourceOptions
 
@@ -80,20 +80,13 @@ def _align_priors(mfs, poses) -> dict[int, tuple[float, float]]:
     """Metric (w, q) per frame index from flow triangulation with the known poses, using
     the partner with the widest baseline (frames that could not be aligned are absent)."""
     by_index = {m.index: m for m in mfs}
-    aligned = {}
-    for m in mfs:
-        wq = align_to_widest_partner(m, by_index, poses)
-        if wq is not None:
-            aligned[m.index] = wq
-    return aligned
+    return {m.index: wq for m in mfs if (wq := align_to_widest_partner(m, by_index, poses)) is not None}
 
 
 def _metric_points(cfg, mfs, aligned, poses) -> np.ndarray | None:
     """(P, 3) world points of the metric-aligned priors (every 4th pixel of every aligned frame)."""
     pts = []
-    for m in mfs:
-        if m.index not in aligned:
-            continue
+    for m in (m for m in mfs if m.index in aligned):
         w, q = aligned[m.index]
         depth = ((m.depth_prior - q) / w)[::4, ::4]
         sub = m.intr.resized(depth.shape[1], depth.shape[0])
@@ -175,7 +168,7 @@ def run_map(req: MapRequest) -> Path:
     write_summary(
         out, frames=len(frames), preset=cfg.preset, device=req.device, priors=provider_names(engine), timer=timer,
         interrupted=interrupted, bound=bound, source=req.source, notes=notes,
-        intrinsics=intrinsics_dict(frames[0].intrinsics), config=config_mod.to_dict(cfg),
+        intrinsics=asdict(frames[0].intrinsics), config=asdict(cfg),
         stats={"iterations": stats.iters if stats else 0, "final_loss": stats.loss if stats else None,
                "loss_terms": stats.terms if stats else {}},
     )

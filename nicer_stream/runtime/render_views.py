@@ -23,6 +23,7 @@ from nicer_stream.render.renderer import render_image
 from nicer_stream.runtime.scene_export import render_tile
 from nicer_stream.runtime.stop import StopSignals
 from nicer_stream.types import Intrinsics
+from sinks import make_sink
 
 PATHS = ("frames", "poses", "orbit", "interpolate")
 VIDEO_FILE = "views.mp4"
@@ -60,11 +61,11 @@ def camera_path(req: ViewRequest, summary: od.Summary, centre: np.ndarray) -> tu
     if req.path == "poses":
         if req.poses_file is None or not Path(req.poses_file).is_file():
             raise UserError(f"poses file {req.poses_file} not found: give a TUM trajectory in the run's world frame")
-        return _tum(req.poses_file)
+        return read_tum(req.poses_file, "fix the TUM file")
     traj = Path(req.out_dir) / od.TRAJECTORY_FILE
     if not traj.is_file():
         raise UserError(f"{traj} not found: the run wrote no trajectory; use --poses FILE.tum")
-    t, T = _tum(traj)
+    t, T = read_tum(traj, "fix the TUM file")
     if len(T) == 0:
         raise UserError(f"{traj} is empty: the run stopped before its first pose; use --poses FILE.tum")
     if req.path == "frames":
@@ -89,13 +90,6 @@ def observed_centre(model, beta) -> np.ndarray:
     w = counts[counts > 0]
     mean = (centres.double() * w[:, None]).sum(0) / w.sum()
     return model.bound.denormalise(mean[None].float()).double().numpy()[0]
-
-
-def _tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    try:
-        return read_tum(path)
-    except ValueError as e:
-        raise UserError(f"{e}: fix the TUM file") from None
 
 
 def _keyframe_rows(summary: od.Summary, n_rows: int) -> list[int]:
@@ -127,11 +121,7 @@ def render_views(req: ViewRequest) -> tuple[Path, int]:
     dest = Path(req.dest) if req.dest else out / "views"
     dest.mkdir(parents=True, exist_ok=True)
     write_tum(dest / "poses.tum", times, poses)
-    sink = None
-    if req.sinks:
-        from sinks import make_sink
-
-        sink = make_sink(list(req.sinks))
+    sink = make_sink(list(req.sinks)) if req.sinks else None
     video, written, t0 = None, 0, time.perf_counter()
     say = (lambda s: None) if req.quiet else (lambda s: print(s, flush=True))
     say(f"rendering {len(poses)} views ({req.path}) at {intr.width}x{intr.height} from {out / SCENE_FILE} into {dest}")

@@ -1,13 +1,13 @@
 """summary.json of a `run`: the notes (bound, priors, scale, stops) and the run's statistics."""
 from __future__ import annotations
 
-from nicer_stream import config as config_mod
+from dataclasses import asdict
+
 from nicer_stream.io import output_dir as od
 from nicer_stream.runtime.frame_priors import fuses_stereo, provider_names
 from nicer_stream.runtime.run_outputs import write_summary
 from nicer_stream.runtime.run_state import RunState
 from nicer_stream.runtime.sink_worker import SinkWorker
-from nicer_stream.runtime.source_setup import intrinsics_dict
 
 
 def run_notes(s: RunState) -> list[str]:
@@ -58,8 +58,8 @@ def write_run_summary(s: RunState) -> od.Summary:
     return write_summary(
         s.out, frames=s.book.fed, preset=s.cfg.preset, device=s.req.device, priors=provider_names(s.engine),
         timer=s.timer, interrupted=s.early, error=s.error, bound=s.slam.bound, source=s.req.source,
-        notes=run_notes(s), intrinsics=intrinsics_dict(intr) if intr is not None else None,
-        config=config_mod.to_dict(s.cfg), stats=run_stats(s))
+        notes=run_notes(s), intrinsics=asdict(intr) if intr is not None else None,
+        config=asdict(s.cfg), stats=run_stats(s))
 
 
 def final_line(s: RunState, summary: od.Summary) -> str:

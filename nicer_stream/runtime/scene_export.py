@@ -64,14 +64,14 @@ class MeshAborted(Exception):
 
 
 def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intrinsics, cfg: SlamConfig,
-               should_stop=None, sparse: bool = True, measured: list[DepthView] = ()) -> trimesh.Trimesh:
+               should_stop=None, measured: list[DepthView] = ()) -> trimesh.Trimesh:
     """Marching cubes over the bound, evaluating the full SDF only in voxels the mapping
     sampled (elsewhere the map knows nothing: treated as free space), then culled to
     the cameras' frustums and to what the rendered depth says they see (no surfaces
     behind walls, none in space the renders, or the keyframes' `measured` depth, see through:
     `cfg.mesh.measured_through_rel`). Vertex colours from the colour network.
-    `should_stop()`, polled between SDF chunks, raises MeshAborted when true. `sparse`: the SDF
-    densely only near the surface (`extract_mesh`; the same mesh), False: at every grid point."""
+    `should_stop()`, polled between SDF chunks, raises MeshAborted when true. The SDF is evaluated
+    densely only near the surface (`extract_mesh`; the same mesh as at every grid point)."""
     resolution = cfg.mesh.resolution
     lo, hi = model.bound.world_min_max()
     observed = beta.counts > 0
@@ -95,7 +95,7 @@ def scene_mesh(model: SceneModel, beta: BetaField, poses: np.ndarray, intr: Intr
                                  beta.voxel_ijk(model.bound.normalise(box_hi)))
 
     with torch.no_grad():
-        mesh = extract_mesh(sdf_fn, model.color_world, lo, hi, resolution, sparse=sparse, jump_fn=jump_fn)
+        mesh = extract_mesh(sdf_fn, model.color_world, lo, hi, resolution, jump_fn=jump_fn)
     if not len(mesh.faces):
         return mesh
     mesh = cull_to_frustums(mesh, poses, intr)

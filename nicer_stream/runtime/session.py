@@ -33,6 +33,7 @@ from nicer_stream.runtime.stop import StopSignals
 from nicer_stream.runtime.thread_plan import ThreadPlan, renders_on_sink_worker
 from nicer_stream.slam.events import FrameTracked, KeyframeAdded, MapUpdated, TrackingWarning
 from nicer_stream.slam.system import SlamSystem
+from sinks import make_sink
 
 if TYPE_CHECKING:
     from nicer_stream.types import Frame
@@ -95,8 +96,6 @@ class RunSession(RunState):
     def _open_sinks(self) -> None:
         """The sink (on its worker unless --sync) and the live map outputs, rendered on the sink
         worker when a core is free, else on this thread."""
-        from sinks import make_sink
-
         req = self.req
         sink = make_sink(list(req.sinks)) if req.sinks else None
         self.live = None

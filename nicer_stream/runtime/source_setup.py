@@ -4,7 +4,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 from nicer_stream.config import SlamConfig
-from nicer_stream.types import Intrinsics
 from sources import open_source
 from sources.base import FrameSource, SourceOptions
 
@@ -22,7 +21,3 @@ def open_configured(uri: str, opts: SourceOptions, cfg: SlamConfig,
         opts = replace(opts, detail_side=cfg.frontend.max_side)
     return open_source(uri, opts), opts
 
-
-def intrinsics_dict(intr: Intrinsics) -> dict:
-    """{fx, fy, cx, cy, width, height} for summary.json."""
-    return {k: getattr(intr, k) for k in ("fx", "fy", "cx", "cy", "width", "height")}

@@ -16,7 +16,6 @@ from nicer_stream.config import RenderConfig
 from nicer_stream.geometry.pose_estimation import pnp_pose
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.render.renderer import render_rays, rays_for_pixels
-from nicer_stream.types import Intrinsics
 
 
 @torch.no_grad()
@@ -46,15 +45,11 @@ def pose_from_flows(sources: list[tuple[MapFrame, torch.Tensor]], dst: MapFrame,
                     model, beta, render: RenderConfig, n_per_source: int, gen: torch.Generator):
     """T_world_cam of `dst` (as `T_guess`'s dtype/device) from the flows of `sources`
     ((frame, T_world_cam) pairs) to it, or None when no PnP solution has enough inliers."""
-    pts, pix = [], []
-    for f, T in sources:
-        c = flow_points(f, T, dst.index, model, beta, render, n_per_source, gen)
-        if c is not None:
-            pts.append(c[0])
-            pix.append(c[1])
-    if not pts:
+    found = [c for f, T in sources
+             if (c := flow_points(f, T, dst.index, model, beta, render, n_per_source, gen)) is not None]
+    if not found:
         return None
-    res = pnp_pose(np.concatenate(pts), np.concatenate(pix), dst.intr, T_guess.double().cpu().numpy())
+    res = pnp_pose(*(np.concatenate(parts) for parts in zip(*found)), dst.intr, T_guess.double().cpu().numpy())
     if res is None:
         return None
     return torch.as_tensor(res[0], dtype=T_guess.dtype, device=T_guess.device)

@@ -8,18 +8,19 @@ Scenes: `room`, `tabletop` (room.py) and `street` (street.py). Defaults: scene `
 """
 from __future__ import annotations
 
-import math
 from typing import Iterator
 
 import numpy as np
 
 from nicer_stream.errors import SourceError
 from nicer_stream.types import Frame, Intrinsics
-from sources.base import FrameSource, SourceOptions, intrinsics_from_override
+from sources.base import FrameSource, SourceOptions
+from sources.intrinsics_files import from_options
 from sources.synthetic.render import RenderedView
 from sources.synthetic.room import room_scene, tabletop_scene
 from sources.synthetic.scene import SyntheticScene
 from sources.synthetic.street import street_scene
+from sources.video import fov_intrinsics
 
 __all__ = ["FPS", "SCENES", "RenderedView", "SyntheticScene", "SyntheticSource", "default_intrinsics", "make_scene", "open", "to_grey"]
 
@@ -53,8 +54,7 @@ def to_grey(rgb: np.ndarray) -> np.ndarray:
 
 def default_intrinsics(width: int, height: int, hfov_deg: float = HFOV_DEG) -> Intrinsics:
     """Square-pixel pinhole with horizontal FoV `hfov_deg`, principal point at the image centre."""
-    f = 0.5 * width / math.tan(math.radians(hfov_deg) / 2)
-    return Intrinsics(f, f, (width - 1) / 2, (height - 1) / 2, width, height)
+    return fov_intrinsics(width, height, hfov_deg)
 
 
 class SyntheticSource(FrameSource):
@@ -115,5 +115,6 @@ def open(path: str, query: dict[str, str], opts: SourceOptions) -> SyntheticSour
         raise SourceError(f"synthetic source: unknown parameter(s) {', '.join(unknown)}: use {', '.join(_LIMITS)}")
     n, seed, w, h, grey = (_int_param(query, k) for k in _LIMITS)
     scene = make_scene(path or "room", seed)
-    intr = intrinsics_from_override(opts, w, h) or default_intrinsics(w, h)
+    override = from_options(opts)
+    intr = override.for_image(w, h) if override is not None else default_intrinsics(w, h)
     return SyntheticSource(scene, n, intr, opts, grey=bool(grey))

@@ -93,11 +93,4 @@ def surface_meshes(surfaces: list[Surface], light: np.ndarray, max_edge: float =
 
 def scene_mesh(surfaces: list[Surface], light: np.ndarray, max_edge: float = 0.05) -> trimesh.Trimesh:
     """All surfaces as one trimesh with vertex colours (uint8 RGBA)."""
-    parts = surface_meshes(surfaces, light, max_edge)
-    offsets = np.cumsum([0] + [len(m.vertices) for m in parts[:-1]])
-    return trimesh.Trimesh(
-        vertices=np.concatenate([m.vertices for m in parts]),
-        faces=np.concatenate([m.faces + o for m, o in zip(parts, offsets)]),
-        vertex_colors=np.concatenate([m.visual.vertex_colors for m in parts]),
-        process=False,
-    )
+    return trimesh.util.concatenate(surface_meshes(surfaces, light, max_edge))

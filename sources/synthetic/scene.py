@@ -34,11 +34,6 @@ class SyntheticScene:
     mesh_edge: float = 0.05
     """Default longest grid edge of `gt_mesh` in metres (large scenes use coarser grids)."""
 
-    @property
-    def objects(self) -> list[Surface]:
-        """The surfaces inside the scene (everything but the enclosing room box or ground)."""
-        return self.surfaces[1:]
-
     def render(self, T_world_cam: np.ndarray, intr: Intrinsics) -> RenderedView:
         """Exact ray-cast view: rgb (H, W, 3), z-depth (H, W) metres (0 = sky), camera-frame normals (H, W, 3)."""
         return render_view(self.surfaces, self.light, T_world_cam, intr, self.sky)
@@ -47,17 +42,6 @@ class SyntheticScene:
         """Ground-truth mesh (world frame, metres) with uint8 RGBA vertex colours (default edge: `mesh_edge`)."""
         return scene_mesh(self.surfaces, self.light, max_edge or self.mesh_edge)
 
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """(3,) min and (3,) max world corner of a box holding every surface."""
-        centre = np.stack([s.shape.centre for s in self.surfaces])
-        extent = np.stack([s.shape.extent for s in self.surfaces])
-        return (centre - extent).min(0), (centre + extent).max(0)
-
     def trajectory(self, n_frames: int) -> np.ndarray:
         """(N, 4, 4) float64 T_world_cam of the first N frames (how N maps onto the path: the builder's docs)."""
         return self.path(n_frames)
-
-    def clearance(self, points: np.ndarray) -> np.ndarray:
-        """(N,) distance in metres from world points (N, 3) to the nearest surface."""
-        p = np.asarray(points, dtype=np.float64).T
-        return np.min([s.shape.sdf(p) for s in self.surfaces], axis=0)

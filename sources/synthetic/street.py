@@ -19,7 +19,7 @@ from sources.synthetic.primitives import Box, Cylinder, Sphere, rot_z
 from sources.synthetic.render import Surface, random_light
 from sources.synthetic.scene import SyntheticScene
 from sources.synthetic.texture import SkyGradient, random_colour, random_texture
-from sources.synthetic.trajectory import look_at
+from sources.synthetic.trajectory import DOWN, look_at
 
 STEP = 1.0
 """Camera advance along the street per frame (metres)."""
@@ -65,7 +65,7 @@ class StreetPath:
         yaw = self.yaw_amp * np.sin(2 * np.pi * i / self.yaw_period + self.phases[1])
         c = np.cos(self.pitch)
         ahead = np.stack([c * np.cos(yaw), c * np.sin(yaw), np.full_like(i, -np.sin(self.pitch))], -1)
-        return np.stack([look_at(e, e + a) for e, a in zip(eye, ahead)])
+        return np.stack([look_at(e, e + a, DOWN) for e, a in zip(eye, ahead)])
 
 
 def _slab(x0: float, x1: float, y0: float, y1: float, z0: float, z1: float) -> Box:

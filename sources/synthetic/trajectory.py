@@ -9,8 +9,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-UP = np.array([0.0, 0.0, 1.0])
-"""World up direction of the synthetic scenes (z up)."""
+from nicer_stream.geometry.camera_paths import look_at
+
+DOWN = -np.array([0.0, 0.0, 1.0])
+"""World down direction of the synthetic scenes (z up; negated up: -0.0 entries, so the poses
+keep the signed zeros they had): cameras keep their image's y axis near it."""
 
 
 @dataclass(frozen=True)
@@ -33,22 +36,6 @@ class OrbitParams:
     target: np.ndarray
     target_amp: np.ndarray
     wobble: float = 1.5
-
-
-def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = UP) -> np.ndarray:
-    """(4, 4) T_world_cam of a camera at `eye` (3,) whose optical axis (+z) points at `target` (3,).
-
-    The camera's y axis (down in the image) is as close as possible to -up.
-    """
-    fwd = target - eye
-    fwd = fwd / np.linalg.norm(fwd)
-    right = np.cross(fwd, up)
-    right /= np.linalg.norm(right)
-    down = np.cross(fwd, right)
-    T = np.eye(4)
-    T[:3, :3] = np.stack([right, down, fwd], axis=1)
-    T[:3, 3] = eye
-    return T
 
 
 def orbit_positions(p: OrbitParams, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
@@ -75,4 +62,4 @@ def orbit_trajectory(p: OrbitParams, n_frames: int) -> np.ndarray:
     if n_frames < 1:
         raise ValueError("n_frames must be >= 1")
     eye, target = orbit_positions(p, n_frames)
-    return np.stack([look_at(e, t) for e, t in zip(eye, target)])
+    return np.stack([look_at(e, t, DOWN) for e, t in zip(eye, target)])

@@ -89,7 +89,7 @@ def test_load_malformed_file_is_one_line_user_error(tmp_path: Path, name: str, t
 
 def test_to_dict_round_trips_through_override():
     cfg = C.fast()
-    assert C.override(C.paper(), C.to_dict(cfg)) == cfg
+    assert C.override(C.paper(), dataclasses.asdict(cfg)) == cfg
 
 
 def config_sources() -> list[Path]:

@@ -7,7 +7,7 @@ import torch
 
 from nicer_stream import denormals
 from nicer_stream.config import load
-from nicer_stream.denormals import flush_denormals, thread_flags
+from nicer_stream.denormals import flush_denormals
 from nicer_stream.mapping.map_frame import MapFrame
 from nicer_stream.mapping.mapper import Mapper
 from nicer_stream.model.bound import SceneBound
@@ -17,8 +17,16 @@ from sources import open_source
 from sources.base import SourceOptions
 
 TINY = torch.finfo(torch.float32).tiny  # smallest normal float32, 1.2e-38
+
+
+def thread_flags() -> list[bool]:
+    """FTZ/DAZ of the calling thread and each of its OpenMP workers, or [] without the helper."""
+    mod = denormals._helper()
+    return list(mod.get_flush(torch.get_num_threads())) if mod is not None else []
+
+
 # Without the compiled helper only the calling thread is flushed, and a parallel product is not.
-needs_helper = pytest.mark.skipif(not denormals.thread_flags(), reason="fpenv helper not built here")
+needs_helper = pytest.mark.skipif(not thread_flags(), reason="fpenv helper not built here")
 
 
 def _denormal_products() -> int:

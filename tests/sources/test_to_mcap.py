@@ -12,7 +12,7 @@ import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from nicer_stream.cli.inspect_cmd import describe
+from nicer_stream.cli.inspect_cmd import describe_with_data
 from sources import open_source
 from sources.intrinsics_files import TUM_DISTORTION, TUM_PUBLISHED
 
@@ -79,9 +79,9 @@ def test_log_carries_the_recorded_lens_and_an_imu_topic(to_mcap, fr1_folder, tmp
 def test_inspect_describes_the_log_and_its_lens(to_mcap, fr1_folder, tmp_path):
     out = tmp_path / "fr1.mcap"
     to_mcap.convert(f"tum:{fr1_folder}", out)
-    listing = "\n".join(describe(str(out)))
+    listing = "\n".join(describe_with_data(str(out))[0])
     for topic, schema in ((to_mcap.IMAGE_TOPIC, "CompressedImage"), (to_mcap.INFO_TOPIC, "CameraInfo"),
                           (to_mcap.IMU_TOPIC, "Imu")):
         assert re.search(rf"{re.escape(topic)}\s+3 msgs\s+sensor_msgs/msg/{schema}", listing)
-    source = describe(f"mcap:{out}")
+    source = describe_with_data(f"mcap:{out}")[0]
     assert any(line.startswith("lens: plumb_bob distortion [0.2624, -0.9531") for line in source)

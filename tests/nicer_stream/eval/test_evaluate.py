@@ -13,7 +13,7 @@ from nicer_stream.cli.main import app
 from nicer_stream.errors import UserError
 from nicer_stream.eval.evaluate import evaluate_output_dir
 from nicer_stream.eval.trajectory import Sim3
-from nicer_stream.geometry.se3 import so3_exp
+from tests.nicer_stream.geometry.rotations import so3_exp
 from nicer_stream.io import output_dir as od
 from nicer_stream.io.trajectory import write_tum
 from nicer_stream.types import Frame, Intrinsics

@@ -6,7 +6,8 @@ import pytest
 import trimesh
 
 from nicer_stream.eval.mesh import CullCamera, SurfaceSamples, cull_observed, mesh_metrics, sample_mesh
-from nicer_stream.eval.reference import ReferenceBuilder, depth_to_points, normals_from_points
+from nicer_stream.eval.reference import ReferenceBuilder, normals_from_points
+from nicer_stream.geometry.depth_normals import unproject_depth
 from nicer_stream.types import Intrinsics
 
 N = 20_000
@@ -98,7 +99,7 @@ def test_reference_from_plane_depth():
     n = np.array([0.3, -0.2, -1.0])
     n /= np.linalg.norm(n)  # faces the camera (n . z < 0)
     depth = tilted_plane_depth(INTR, n, -2.0)
-    P = depth_to_points(depth, INTR)
+    P = unproject_depth(depth, INTR)
     normals, valid = normals_from_points(P, depth.astype(np.float64))
     assert valid[1:-1, 1:-1].all() and not valid[0].any()
     np.testing.assert_allclose(normals[valid], np.broadcast_to(n, normals[valid].shape), atol=1e-4)
@@ -116,7 +117,7 @@ def test_reference_from_plane_depth():
 def test_reference_drops_depth_edges_and_empty():
     depth = np.full((80, 100), 2.0, np.float32)
     depth[:, 50:] = 4.0  # a step edge: normals there would be bogus
-    _, valid = normals_from_points(depth_to_points(depth, INTR), depth.astype(np.float64))
+    _, valid = normals_from_points(unproject_depth(depth, INTR), depth.astype(np.float64))
     assert not valid[:, 49:51].any() and valid[5:-5, 5:45].all()
     assert ReferenceBuilder().build() is None
 

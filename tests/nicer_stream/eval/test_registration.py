@@ -8,7 +8,7 @@ import trimesh
 
 from nicer_stream.eval.registration import compose, icp_sim3, pins_similarity, scale_change_trusted
 from nicer_stream.eval.trajectory import Sim3
-from nicer_stream.geometry.se3 import so3_exp
+from tests.nicer_stream.geometry.rotations import so3_exp
 
 IDENTITY = Sim3(np.eye(3), np.zeros(3), 1.0)
 

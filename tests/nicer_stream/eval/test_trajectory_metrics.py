@@ -6,7 +6,8 @@ import pytest
 import torch
 
 from nicer_stream.eval.trajectory import Sim3, ate, pose_sim3, relative_errors, rpe, umeyama
-from nicer_stream.geometry.se3 import se3_exp, so3_exp
+from nicer_stream.geometry.se3 import se3_exp
+from tests.nicer_stream.geometry.rotations import so3_exp
 from tests.nicer_stream.eval.sim3_poses import apply_poses
 
 

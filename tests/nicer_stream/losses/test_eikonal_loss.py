@@ -1,6 +1,14 @@
 import torch
 
-from nicer_stream.losses.eikonal import eikonal_loss, sdf_gradient
+from nicer_stream.losses.eikonal import eikonal_loss
+
+
+def sdf_gradient(sdf_fn, x: torch.Tensor) -> torch.Tensor:
+    """(N, 3) gradient of `sdf_fn` ((N, 3) points -> (N,) SDF) at points `x` (N, 3), differentiable
+    (create_graph), so an eikonal loss on it trains the SDF's parameters."""
+    x = x.detach().requires_grad_(True)
+    (grad,) = torch.autograd.grad(sdf_fn(x).sum(), x, create_graph=True)
+    return grad
 
 
 def _points(n=200):

@@ -6,10 +6,35 @@ import numpy as np
 import pytest
 import torch
 
+from nicer_stream.mesh import extract
 from nicer_stream.mesh.extract import _grid_axes, extract_mesh
-from nicer_stream.mesh.sparse_grid import evaluate_grid, evaluate_grid_sparse, mixed_voxel_boxes
+from nicer_stream.mesh.sparse_grid import _sdf_values, evaluate_grid_sparse, mixed_voxel_boxes
 
 LO, HI = [-1.0, -0.9, -1.1], [1.0, 1.2, 0.95]
+
+
+def evaluate_grid(sdf_fn, axes: list[np.ndarray], chunk: int, device) -> np.ndarray:
+    """(R_x, R_y, R_z) float32 volume of sdf_fn at every grid point: the dense reference (moved here
+    from mesh/sparse_grid.py, which only the tests asked for), a few x-planes at a time."""
+    shape = tuple(len(a) for a in axes)
+    ax = [torch.as_tensor(a, dtype=torch.float32, device=device) for a in axes]
+    out = np.empty(shape, dtype=np.float32)
+    planes = max(1, chunk // (shape[1] * shape[2]))
+    with torch.no_grad():
+        for i0 in range(0, shape[0], planes):
+            i1 = min(i0 + planes, shape[0])
+            pts = torch.stack(torch.meshgrid(ax[0][i0:i1], ax[1], ax[2], indexing="ij"), dim=-1).reshape(-1, 3)
+            out[i0:i1] = _sdf_values(sdf_fn, pts, chunk).reshape(i1 - i0, *shape[1:])
+    return out
+
+
+def on_dense_grid(fn, *args, **kwargs):
+    """`fn(*args, **kwargs)` (extract_mesh, or scene_mesh through it) on the dense grid: every
+    point evaluated (jump_fn then plays no part)."""
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(extract, "evaluate_grid_sparse",
+                  lambda sdf_fn, axes, chunk, device, jump_fn=None: evaluate_grid(sdf_fn, axes, chunk, device))
+        return fn(*args, **kwargs)
 
 
 def _sphere(centre, radius):
@@ -82,8 +107,8 @@ def _assert_same_mesh(a, b) -> None:
 @pytest.mark.parametrize("resolution", [23, 48, 61])
 def test_sparse_and_dense_grids_give_the_same_mesh(name, resolution):
     sdf = SDFS[name]
-    dense = extract_mesh(sdf, None, LO, HI, resolution, chunk=5000, sparse=False)
-    _assert_same_mesh(extract_mesh(sdf, None, LO, HI, resolution, chunk=5000), dense)
+    dense_mesh = on_dense_grid(extract_mesh, sdf, None, LO, HI, resolution, chunk=5000)
+    _assert_same_mesh(extract_mesh(sdf, None, LO, HI, resolution, chunk=5000), dense_mesh)
 
 
 @pytest.mark.parametrize("block", [1, 2, 4, 8, 32])
@@ -130,8 +155,8 @@ def _mask_jumps(lo, hi):
 
 @pytest.mark.parametrize("resolution", [40, 61])
 def test_an_sdf_jumping_at_a_mask_gives_the_dense_mesh_when_the_jumps_are_declared(resolution):
-    dense = extract_mesh(_masked_sphere, None, LO, HI, resolution, sparse=False)
-    _assert_same_mesh(extract_mesh(_masked_sphere, None, LO, HI, resolution, jump_fn=_mask_jumps), dense)
+    dense_mesh = on_dense_grid(extract_mesh, _masked_sphere, None, LO, HI, resolution)
+    _assert_same_mesh(extract_mesh(_masked_sphere, None, LO, HI, resolution, jump_fn=_mask_jumps), dense_mesh)
     # Undeclared, the slab falls between the coarse lattice's points (all 1): no surface at all.
     assert len(extract_mesh(_masked_sphere, None, LO, HI, resolution).faces) == 0
 
@@ -213,9 +238,9 @@ def test_scene_mesh_is_the_same_from_the_sparse_grid(small_scene):
     from nicer_stream.runtime.scene_export import scene_mesh
 
     sparse = scene_mesh(*small_scene)
-    dense = scene_mesh(*small_scene, sparse=False)
-    _assert_same_mesh(sparse, dense)
-    assert np.array_equal(sparse.visual.vertex_colors, dense.visual.vertex_colors)
+    dense_mesh = on_dense_grid(scene_mesh, *small_scene)
+    _assert_same_mesh(sparse, dense_mesh)
+    assert np.array_equal(sparse.visual.vertex_colors, dense_mesh.visual.vertex_colors)
 
 
 def test_scene_mesh_stops_when_asked(small_scene):

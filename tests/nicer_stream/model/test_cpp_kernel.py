@@ -108,7 +108,7 @@ def test_the_kernel_names_are_the_same_in_every_process_of_a_checkout(tmp_path):
     import sys
 
     code = ("from nicer_stream.model import grid_kernel, positional, softplus; from nicer_stream import denormals;"
-            "print(grid_kernel._KERNEL.name, positional.ENCODING_KERNEL.name, softplus._KERNEL.name, denormals._KERNEL.name)")
+            "print(grid_kernel._KERNEL.name, positional.ENCODING_KERNEL.name, softplus.SOFTPLUS_KERNEL.name, denormals._KERNEL.name)")
     root = str(Path(__file__).resolve().parents[3])
     names = []
     for cwd, threads in ((tmp_path, "1"), (root, "2")):

@@ -1,6 +1,7 @@
 """GeometryMLP: the reference (forward-mode) tangent and the fused SDF gradient equal the autograd Jacobian."""
 import torch
 
+from tests.nicer_stream.model.mlp_reference import reference_forward
 from nicer_stream.model.mlp import GeometryMLP, plain_mlp
 
 
@@ -15,7 +16,7 @@ def test_tangent_equals_autograd_jacobian():
     def f(v):  # R^3 -> R^4, input of the MLP is a linear map of v
         return mlp(v @ A)
 
-    out, tan = mlp.reference_forward(x @ A, A.expand(6, 3, 5))
+    out, tan = reference_forward(mlp, x @ A, A.expand(6, 3, 5))
     out_f, u = mlp.value_and_input_grad(x @ A)
     grad0 = torch.bmm(A.expand(6, 3, 5), u.unsqueeze(-1)).squeeze(-1)  # J u
     assert torch.allclose(out, f(x), atol=1e-12) and torch.allclose(out_f, f(x), atol=1e-12)

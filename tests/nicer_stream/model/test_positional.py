@@ -5,10 +5,10 @@ import math
 import pytest
 import torch
 
-from nicer_stream.model.positional import (encoding_dim, kernel_available, positional_encoding,
+from nicer_stream.model.positional import (ENCODING_KERNEL, encoding_dim, positional_encoding,
                                            positional_encoding_reference)
 
-needs_kernel = pytest.mark.skipif(not kernel_available(torch.zeros(1)), reason="encoding kernel could not be built here")
+needs_kernel = pytest.mark.skipif(not ENCODING_KERNEL.available(torch.zeros(1)), reason="encoding kernel could not be built here")
 
 
 def test_values_match_definition():

@@ -4,10 +4,10 @@ float64 through the kernel; and the kernel against the encoding's explicit Jacob
 import pytest
 import torch
 
-from nicer_stream.model.positional import kernel_available, positional_encoding  # the same kernel file
+from nicer_stream.model.positional import ENCODING_KERNEL, positional_encoding  # the same kernel file
 from nicer_stream.model.sdf_grad_assembly import SdfGradAssembly, assemble_reference, assemble_sdf_grad
 
-needs_kernel = pytest.mark.skipif(not kernel_available(torch.zeros(1)), reason="sdf-gradient kernel could not be built here")
+needs_kernel = pytest.mark.skipif(not ENCODING_KERNEL.available(torch.zeros(1)), reason="sdf-gradient kernel could not be built here")
 L = 3
 
 

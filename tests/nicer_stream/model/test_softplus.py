@@ -3,10 +3,10 @@
 import pytest
 import torch
 
-from nicer_stream.model.softplus import (SOFTPLUS_BETA, kernel_available, softplus_and_sigmoid, softplus_beta,
+from nicer_stream.model.softplus import (SOFTPLUS_BETA, SOFTPLUS_KERNEL, softplus_and_sigmoid, softplus_beta,
                                          softplus_beta_reference, sweep_adjoint, sweep_adjoint_reference)
 
-needs_kernel = pytest.mark.skipif(not kernel_available(torch.zeros(1)), reason="softplus kernel could not be built here")
+needs_kernel = pytest.mark.skipif(not SOFTPLUS_KERNEL.available(torch.zeros(1)), reason="softplus kernel could not be built here")
 
 
 def test_softplus_matches_torch_including_large_inputs():

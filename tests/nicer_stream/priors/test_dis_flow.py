@@ -5,7 +5,8 @@ import cv2
 import numpy as np
 import pytest
 
-from nicer_stream.priors.dis_flow import DisFlowProvider, to_gray_u8
+from nicer_stream.grey import to_grey_u8
+from nicer_stream.priors.dis_flow import DisFlowProvider
 from nicer_stream.priors.flow_consistency import consistency_mask, in_image_mask
 from nicer_stream.types import Frame, Intrinsics
 
@@ -73,7 +74,7 @@ def test_consistency_mask_rejects_corrupted_flow(rgb320):
 def test_gray_conversion_range():
     rgb = np.zeros((2, 2, 3), np.float32)
     rgb[0, 0] = 1.0
-    g = to_gray_u8(rgb)
+    g = to_grey_u8(rgb)
     assert g.dtype == np.uint8 and g[0, 0] == 255 and g[1, 1] == 0
 
 

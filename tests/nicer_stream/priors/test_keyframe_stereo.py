@@ -272,9 +272,9 @@ def test_keyframe_priors_swept_on_the_sources_larger_image_are_closer_to_the_tru
 
 def _gt_points(frame, step: int = 16) -> np.ndarray:
     """Camera-frame points (N, 3) of a frame's GT depth on a coarse grid."""
-    from nicer_stream.eval.reference import depth_to_points
+    from nicer_stream.geometry.depth_normals import unproject_depth
 
-    P = depth_to_points(frame.gt_depth, frame.intrinsics)[::step, ::step].reshape(-1, 3)
+    P = unproject_depth(frame.gt_depth, frame.intrinsics)[::step, ::step].reshape(-1, 3)
     return P[P[:, 2] > 0]
 
 

@@ -8,7 +8,8 @@ import torch
 
 from nicer_stream.config import MappingConfig, ModelConfig, RenderConfig
 from nicer_stream.geometry.camera import pixel_grid
-from nicer_stream.geometry.se3 import make_pose, se3_exp, so3_exp
+from nicer_stream.geometry.se3 import make_pose, se3_exp
+from tests.nicer_stream.geometry.rotations import so3_exp
 from nicer_stream.model.bound import SceneBound
 from nicer_stream.model.scene import SceneModel
 from nicer_stream.render.beta import BetaField

@@ -10,6 +10,7 @@ import torch
 from nicer_stream.errors import SourceError
 from nicer_stream.geometry import camera, se3
 from sources import open_source
+from tests.sources.synthetic.scene_geometry import bounds, clearance
 from sources.synthetic import default_intrinsics, make_scene
 from sources.synthetic.street import STEP
 
@@ -83,7 +84,7 @@ def test_trajectory_drives_forward_along_the_street(street):
     assert np.ptp(t[:, 1]) > 0.3  # not a pure line
     rel = torch.from_numpy(R[0].T @ R)
     assert np.degrees(se3.rotation_angle(rel).numpy()).max() > 2.0  # it yaws a little
-    assert street.clearance(t).min() > 1.0
+    assert clearance(street, t).min() > 1.0
     np.testing.assert_array_equal(street.trajectory(40), T[:40])  # prefix: the same poses for any N
     with pytest.raises(SourceError) as e:
         street.trajectory(10_000)
@@ -96,7 +97,7 @@ def test_render_agrees_with_ray_casting_the_gt_mesh(street, mid_view):
     mesh = street.gt_mesh()
     built = time.perf_counter() - t0
     assert len(mesh.faces) < 1_000_000 and built < 15.0  # target < 5 s; loose because the machine is shared
-    lo, hi = street.bounds()
+    lo, hi = bounds(street)
     assert (mesh.vertices >= lo - 1e-6).all() and (mesh.vertices <= hi + 1e-6).all()
     rng = np.random.default_rng(0)
     depth = view.depth.reshape(-1)

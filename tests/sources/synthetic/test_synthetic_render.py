@@ -10,6 +10,7 @@ import trimesh
 
 from nicer_stream.errors import SourceError
 from nicer_stream.geometry import camera, se3
+from tests.sources.synthetic.scene_geometry import bounds, clearance
 from sources.synthetic import default_intrinsics, make_scene
 from sources.synthetic.mesh import surface_meshes
 from sources.synthetic.primitives import Box, Cylinder, Sphere, rot_z
@@ -148,12 +149,12 @@ def test_warping_with_gt_depth_and_poses_reproduces_colours(name):
 def test_gt_mesh_objects_watertight_and_coloured(name):
     scene = make_scene(name, 5)
     meshes = surface_meshes(scene.surfaces, scene.light, max_edge=0.2)
-    assert len(scene.objects) >= 5
-    kinds = [type(s.shape).__name__ for s in scene.objects]
+    assert len(scene.surfaces[1:]) >= 5
+    kinds = [type(s.shape).__name__ for s in scene.surfaces[1:]]
     assert kinds.count("Box") >= 2 and kinds.count("Sphere") >= 2 and kinds.count("Cylinder") >= 1
     assert all(m.is_watertight and m.is_winding_consistent for m in meshes)
     assert meshes[0].volume < 0 < min(m.volume for m in meshes[1:])  # room faces point inwards
-    lo, hi = scene.bounds()
+    lo, hi = bounds(scene)
     full = scene.gt_mesh(max_edge=0.2)
     assert full.visual.vertex_colors.shape == (len(full.vertices), 4)
     assert (full.vertices >= lo - 1e-9).all() and (full.vertices <= hi + 1e-9).all()
@@ -173,8 +174,8 @@ def test_trajectory_smooth_clear_and_looking_at_objects(name):
     assert step.max() < 0.10 and step_deg.max() < 5.0
     total_deg = np.degrees(se3.rotation_angle(torch.from_numpy(R[0].T @ R)).numpy()).max()
     assert 1.0 < step.sum() < 8.0 and total_deg > 30.0
-    assert scene.clearance(t).min() > 0.25  # never inside or grazing an object or wall
-    centres = np.stack([s.shape.centre for s in scene.objects])
+    assert clearance(scene, t).min() > 0.25  # never inside or grazing an object or wall
+    centres = np.stack([s.shape.centre for s in scene.surfaces[1:]])
     p_cam = np.einsum("nji,nj->ni", R, centres.mean(0) - t)  # R^T (p - t)
     uv, z = camera.project(torch.from_numpy(p_cam), SMALL)
     assert (z > 0).all() and camera.in_image(uv, SMALL).all()

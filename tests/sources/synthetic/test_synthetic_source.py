@@ -9,6 +9,7 @@ import pytest
 from nicer_stream.errors import SourceError
 from sources import open_source
 from sources.base import SourceOptions
+from tests.sources.synthetic.scene_geometry import bounds
 from sources.synthetic import FPS, make_scene
 
 
@@ -82,6 +83,6 @@ def test_bad_uri_gives_one_line_source_error(uri):
 def test_source_exposes_the_gt_mesh_for_evaluation():
     src = open_source("synthetic:room?frames=4")
     mesh = src.gt_mesh()
-    lo, hi = src.scene.bounds()
+    lo, hi = bounds(src.scene)
     assert len(mesh.faces) > 100
     assert (mesh.vertices >= lo - 1e-6).all() and (mesh.vertices <= hi + 1e-6).all()
