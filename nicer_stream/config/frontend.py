@@ -75,8 +75,11 @@ class FrontendConfig(Checked):
     """... whose surface lies in a voxel that mapping sampled at least this many times (the
     locally adaptive beta's counter): elsewhere the map is still its initial sphere."""
     map_landmark_scale: float = 1.25
-    """Seeding needs the frame's own landmarks, where it has some, at most this factor deeper or
-    shallower than the map's depth (median)."""
+    """The frame's own landmarks, where it has some, more than this factor deeper or shallower than
+    the map's depth (median) are a scale the map does not share ..."""
+    map_rescale: bool = False
+    """... and the frontend is rescaled to the map's (checked at every keyframe); False: such a
+    frame seeds nothing and the frontend keeps its scale."""
     max_disagreement_depth_frac: float = 0.005
     """Photometric and frontend poses further apart than this fraction of the landmarks' median depth
     (or `max_disagreement_frac` of the motion, if larger) are a tracking loss."""

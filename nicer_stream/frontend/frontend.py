@@ -153,18 +153,24 @@ class ClassicalFrontend:
         X = np.stack([self.landmarks[i] for i in ids[has].tolist()]) if has.any() else np.zeros((0, 3))
         return uv[has], X
 
-    def seed_landmarks(self, index: int, depth_at: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> tuple[int, float]:
+    def seed_landmarks(self, index: int, depth_at: Callable[[np.ndarray, np.ndarray], np.ndarray],
+                       check_scale: bool = False) -> tuple[int, float]:
         """Landmarks from the map's depth for trusted frame `index`'s tracks that have none, when it
         sees fewer than `map_landmarks_below`: `depth_at(T_world_cam (4, 4), uv (N, 2))` gives the
         z-depth (N,) at its pose of all its tracks, nan where the map does not know. Why: a turning
         camera outruns triangulation (no parallax) and loses its landmarks within frames; the map saw
         those places. They count as triangulated with `map_landmark_parallax_deg`, so a wider
-        baseline replaces them. Where `min_inliers` of its landmarks have a map depth too, the
-        median ratio of theirs to the map's must be within `map_landmark_scale` of 1, else nothing
-        is seeded (the two disagree on the scale). Returns (landmarks added, that ratio or nan)."""
+        baseline replaces them.
+
+        Where `min_inliers` of its own landmarks have a map depth too (on every call with
+        `check_scale`), the median ratio of their depth to the map's is its scale against the map's:
+        beyond `map_landmark_scale` of 1 the frontend is rescaled to the map about the frame's centre
+        (`map_rescale`; the map holds the scale of when it saw the place, the frontend drifts), else
+        nothing is seeded. Returns (landmarks added, that ratio or nan)."""
         ids, uv = self.obs.get(index, (np.zeros(0, np.int64), np.zeros((0, 2))))
         has = np.array([i in self.landmarks for i in ids.tolist()], bool)
-        if index not in self.poses or has.sum() >= self.cfg.map_landmarks_below or has.all():
+        few = has.sum() < self.cfg.map_landmarks_below and not has.all()
+        if index not in self.poses or not (few or check_scale):
             return 0, float("nan")
         T = self.poses[index]
         z = depth_at(T, uv)
@@ -174,7 +180,11 @@ class ClassicalFrontend:
             X = np.stack([self.landmarks[t] for t in ids[both].tolist()])
             ratio = float(np.median(project(T, X, self.intr)[1] / z[both]))
             if not 1 / self.cfg.map_landmark_scale <= ratio <= self.cfg.map_landmark_scale:
-                return 0, ratio
+                if not self.cfg.map_rescale:
+                    return 0, ratio
+                self.rescale(T[:3, 3], 1 / ratio)
+        if not few:
+            return 0, ratio
         ok = ~has & np.isfinite(z) & (z > 0)
         uv_n = (uv[ok] - [self.intr.cx, self.intr.cy]) / [self.intr.fx, self.intr.fy]
         X_cam = np.concatenate([uv_n, np.ones((len(uv_n), 1))], 1) * z[ok, None]
@@ -182,6 +192,16 @@ class ClassicalFrontend:
             self.landmarks[t] = x
             self.parallax[t] = self.cfg.map_landmark_parallax_deg
         return int(ok.sum()), ratio
+
+    def rescale(self, centre: np.ndarray, factor: float) -> None:
+        """Scale its landmarks and the camera centres of its window by `factor` about the world
+        point `centre` (3,): its tracks reproject as before, its unit changes."""
+        for poses in (self.poses, self.own):
+            for k, T in poses.items():
+                T = T.copy()
+                T[:3, 3] = centre + factor * (T[:3, 3] - centre)
+                poses[k] = T
+        self.landmarks = {t: centre + factor * (X - centre) for t, X in self.landmarks.items()}
 
     def common_tracks(self, a: int, b: int) -> int:
         """How many tracks observed frames `a` and `b` share (0 when either is not observed)."""

@@ -39,6 +39,7 @@ class FrontendLink:
         self.health = FrontendHealth()  # the frontend's own checks of its poses
         self.distrusted: set[int] = set()  # frames whose frontend pose failed them
         self.scene_depth: float | None = None  # the latest checked pose's median landmark depth
+        self.rescaled: list[tuple[int, float]] = []  # (frame, ratio) where its scale left the map's
 
     @property
     def intr(self) -> Intrinsics | None:
@@ -91,20 +92,25 @@ class FrontendLink:
             with self.timer():
                 self.frontend.set_pose(index, T.double().cpu().numpy(), trusted, adopt=index in self.distrusted)
 
-    def seed_from_map(self, index: int, view: tuple, render: RenderConfig) -> None:
+    def seed_from_map(self, index: int, view: tuple, render: RenderConfig, check_scale: bool) -> None:
         """Landmarks from the map `view` ((model, beta), `map_view()`) for trusted frame `index`'s
-        tracks that have none, when it sees few (`ClassicalFrontend.seed_landmarks`)."""
+        tracks that have none, when it sees few; with `check_scale` (a keyframe) its scale against
+        the map's is checked in any case (`ClassicalFrontend.seed_landmarks`)."""
         if self.frontend is None or self.frontend.cfg.map_landmarks_below <= 0:
             return
         model, beta = view
         cfg = self.frontend.cfg
         with self.timer():
             n, ratio = self.frontend.seed_landmarks(index, lambda T, uv: depth_at_pixels(
-                model, beta, render, T, self.frontend.intr, uv, cfg.map_landmark_opacity, cfg.map_landmark_samples))
+                model, beta, render, T, self.frontend.intr, uv, cfg.map_landmark_opacity, cfg.map_landmark_samples),
+                check_scale)
+        off = np.isfinite(ratio) and not 1 / cfg.map_landmark_scale <= ratio <= cfg.map_landmark_scale
+        if off:
+            log.warning("frame %d: the frontend's landmarks are %.2fx the map's depth: %s", index, ratio,
+                        "frontend rescaled to the map" if cfg.map_rescale else "no landmarks from the map")
+            self.rescaled.append((index, ratio))
         if n:
-            log.info("frame %d: %d landmarks from the map's depth (its own at %.2fx the map's)", index, n, ratio)
-        elif np.isfinite(ratio):
-            log.info("frame %d: no landmarks from the map: its own are %.2fx the map's depth", index, ratio)
+            log.info("frame %d: %d landmarks from the map's depth", index, n)
 
     def two_view(self, first: int, index: int, median_m: float, fallback: bool = False) -> TwoViewTracks | None:
         if self.frontend is None:

@@ -173,7 +173,7 @@ class SlamSystem:
         is_kf, maps = self.keyframing.schedule(i, frame.timestamp, trusted)
         self.front.set_pose(i, s.poses[i], self.tracking.frontend_trusts(i))
         if s.model is not None:  # a frame the frontend does not trust is left alone by it
-            self.front.seed_from_map(i, self.map_view(), self.cfg.render)
+            self.front.seed_from_map(i, self.map_view(), self.cfg.render, is_kf and trusted)
         if is_kf or maps or self.maps.due:  # its flows are needed (before any keyframe is halved:
             s.attach_deferred(s.frames[i])  # flows into those are dropped)
         events = self.keyframing.add(i, frame.timestamp) if is_kf and trusted else []
@@ -222,6 +222,7 @@ class SlamSystem:
                 "disagreements_kept": dict(tracking.verdicts),
                 "unposed_before_start": list(self.startup.unposed),
                 "disagreement_streaks": [{"first_frame": a, "frames": n} for a, n in tracking.disagreements.streaks],
+                "scale_off_map": [{"frame": i, "ratio": round(r, 3)} for i, r in self.front.rescaled],
                 "keyframe_reasons": self.keyframing.reasons()}
 
     def trajectory(self) -> tuple[list[float], list[np.ndarray]]:

@@ -238,13 +238,17 @@ def test_landmarks_seeded_from_depth_place_a_frame_that_triangulation_cannot():
     assert _err(src[2].gt_pose, est.T_world_cam)[0] < 0.02
 
 
-def test_depth_that_disagrees_with_the_frames_own_landmarks_seeds_nothing():
-    """A frame with some landmarks of its own: a map depth twice theirs is a scale the frontend
-    does not share, and seeding from it would mix two scales."""
+@pytest.mark.parametrize("rescale", [False, True])
+def test_a_map_depth_at_another_scale_rescales_the_frontend_or_seeds_nothing(rescale):
+    """A frame with landmarks of its own and a map depth twice theirs: the map's scale is not the
+    frontend's. With `map_rescale` the frontend's landmarks and window move to the map's scale
+    about the frame's centre (its tracks reproject as before) and the rest is seeded; without, no
+    landmark from the map mixes a second scale in."""
     src = list(open_source("synthetic:room?frames=120", SourceOptions(max_frames=1)))
-    fe = ClassicalFrontend(FrontendConfig(corners=400, map_landmarks_below=10_000))
+    fe = ClassicalFrontend(FrontendConfig(corners=400, map_landmarks_below=10_000, map_rescale=rescale))
     fe.observe(0, src[0].rgb, src[0].intrinsics)
-    fe.set_pose(0, src[0].gt_pose)
+    T = src[0].gt_pose.copy()
+    fe.set_pose(0, T)
 
     def depth_at(factor, every):
         def f(T, uv):
@@ -255,7 +259,17 @@ def test_depth_that_disagrees_with_the_frames_own_landmarks_seeds_nothing():
 
     n0 = fe.seed_landmarks(0, depth_at(1.0, 3))[0]  # a third of its tracks
     assert n0 > 50
+    before = dict(fe.landmarks)
     n, ratio = fe.seed_landmarks(0, depth_at(2.0, 1))
-    assert n == 0 and abs(ratio - 0.5) < 1e-6 and len(fe.landmarks) == n0
-    n, ratio = fe.seed_landmarks(0, depth_at(1.1, 1))  # within map_landmark_scale: the rest
-    assert n > 0 and abs(ratio - 1 / 1.1) < 1e-6 and len(fe.landmarks) == n0 + n
+    assert abs(ratio - 0.5) < 1e-6
+    if not rescale:
+        assert n == 0 and len(fe.landmarks) == n0
+        n, ratio = fe.seed_landmarks(0, depth_at(1.1, 1))  # within map_landmark_scale: the rest
+        assert n > 0 and abs(ratio - 1 / 1.1) < 1e-6 and len(fe.landmarks) == n0 + n
+    else:
+        assert n > 0 and len(fe.landmarks) == n0 + n
+        c = T[:3, 3]
+        for t, X in before.items():
+            assert np.allclose(fe.landmarks[t], c + 2 * (X - c))
+        assert np.allclose(fe.poses[0], T)  # the centre of the scaling
+        assert np.isclose(fe.seed_landmarks(0, depth_at(2.0, 1), check_scale=True)[1], 1.0)
