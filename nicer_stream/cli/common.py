@@ -17,12 +17,18 @@ def user_errors(fn):
         try:
             return fn(*args, **kwargs)
         except (UserError, OSError) as e:
-            message = (e if isinstance(e, UserError) else f"file not found: {e.filename or e}"
-                       if isinstance(e, FileNotFoundError) else os_error(e))
-            typer.echo(f"error: {message}", err=True)
+            typer.echo(f"error: {_message(e)}", err=True)
             raise typer.Exit(2)
 
     return wrapper
+
+
+def _message(e: Exception) -> str:
+    if isinstance(e, UserError):
+        return str(e)
+    if isinstance(e, FileNotFoundError):
+        return f"file not found: {e.filename or e}"
+    return os_error(e)
 
 
 def os_error(e: OSError) -> str:

@@ -16,7 +16,7 @@ from nicer_stream.grey import to_grey_u8
 from nicer_stream.frontend.sift import SiftTracks
 from nicer_stream.frontend.schur_ba import bundle_adjust_schur
 from nicer_stream.frontend.triangulate import triangulate
-from nicer_stream.geometry.camera import project_world as project
+from nicer_stream.geometry.camera import project_world as project, unproject_world
 from nicer_stream.geometry.pose_estimation import essential_pose, pnp_pose
 from nicer_stream.types import Intrinsics
 
@@ -179,19 +179,23 @@ class ClassicalFrontend:
         if both.sum() >= self.cfg.min_inliers:
             X = np.stack([self.landmarks[t] for t in ids[both].tolist()])
             ratio = float(np.median(project(T, X, self.intr)[1] / z[both]))
-            if not 1 / self.cfg.map_landmark_scale <= ratio <= self.cfg.map_landmark_scale:
+            if self.off_map_scale(ratio):
                 if not self.cfg.map_rescale:
                     return 0, ratio
                 self.rescale(T[:3, 3], 1 / ratio)
         if not few:
             return 0, ratio
         ok = ~has & np.isfinite(z) & (z > 0)
-        uv_n = (uv[ok] - [self.intr.cx, self.intr.cy]) / [self.intr.fx, self.intr.fy]
-        X_cam = np.concatenate([uv_n, np.ones((len(uv_n), 1))], 1) * z[ok, None]
-        for t, x in zip(ids[ok].tolist(), X_cam @ T[:3, :3].T + T[:3, 3]):
+        for t, x in zip(ids[ok].tolist(), unproject_world(T, uv[ok], z[ok], self.intr)):
             self.landmarks[t] = x
             self.parallax[t] = self.cfg.map_landmark_parallax_deg
         return int(ok.sum()), ratio
+
+    def off_map_scale(self, ratio: float) -> bool:
+        """Whether a ratio of its landmarks' depth to the map's (`seed_landmarks`) is a scale the map
+        does not share: beyond `map_landmark_scale` of 1 (nan: not known, so not off)."""
+        s = self.cfg.map_landmark_scale
+        return bool(np.isfinite(ratio)) and not 1 / s <= ratio <= s
 
     def rescale(self, centre: np.ndarray, factor: float) -> None:
         """Scale its landmarks and the camera centres of its window by `factor` about the world

@@ -64,6 +64,13 @@ def project_world(T_world_cam: np.ndarray, X: np.ndarray, intr: Intrinsics) -> t
     return uv, z
 
 
+def unproject_world(T_world_cam: np.ndarray, uv: np.ndarray, z: np.ndarray, intr: Intrinsics) -> np.ndarray:
+    """numpy, the inverse of `project_world`: pixels (N, 2) at z-depth (N,) in the camera at
+    `T_world_cam` (4, 4) -> world points (N, 3) float64."""
+    p = np.stack([(uv[:, 0] - intr.cx) / intr.fx, (uv[:, 1] - intr.cy) / intr.fy, np.ones(len(uv))], -1) * z[:, None]
+    return p @ T_world_cam[:3, :3].T + T_world_cam[:3, 3]
+
+
 def unproject(uv: torch.Tensor, depth: torch.Tensor, intr: Intrinsics) -> torch.Tensor:
     """(N, 2) pixels with (N,) z-depth -> (N, 3) camera-frame points."""
     return camera_dirs(uv, intr).to(depth.dtype) * depth[:, None]

@@ -136,16 +136,15 @@ def depth_at_pixels(model: SceneModel, beta: BetaField, cfg: RenderConfig, T_wor
     sampled fewer than `min_samples` times (`BetaField.counts`): places the map has not seen."""
     dev = next(model.parameters()).device
     T = torch.as_tensor(T_world_cam, dtype=torch.float32, device=dev)
-    if len(uv) == 0:
-        return np.zeros(0)
-    rays = rays_for_pixels(torch.as_tensor(uv, dtype=torch.float32, device=dev), intr, T)
-    out = [render_rays(model, beta, RayBatch(rays.origins[i:i + cfg.chunk_rays], rays.dirs[i:i + cfg.chunk_rays],
-                                             rays.z_per_dist[i:i + cfg.chunk_rays]), cfg, jitter=False, depth_only=True)
-           for i in range(0, len(uv), cfg.chunk_rays)]
-    ray_dist, a = torch.cat([o.ray_dist for o in out]), torch.cat([o.opacity for o in out])
-    surface = model.bound.normalise(rays.origins + rays.dirs * ray_dist[:, None])
-    seen = beta.counts[beta.voxel_index(surface)] >= min_samples * beta.cfg.beta_count_weight
-    return torch.where((a >= min_opacity) & seen, ray_dist * rays.z_per_dist, torch.nan).double().cpu().numpy()
+    uv_t = torch.as_tensor(uv, dtype=torch.float32, device=dev)
+    z = []
+    for i in range(0, len(uv), cfg.chunk_rays):
+        rays = rays_for_pixels(uv_t[i:i + cfg.chunk_rays], intr, T)
+        out = render_rays(model, beta, rays, cfg, jitter=False, depth_only=True)
+        surface = model.bound.normalise(rays.origins + rays.dirs * out.ray_dist[:, None])
+        seen = beta.counts[beta.voxel_index(surface)] >= min_samples * beta.cfg.beta_count_weight
+        z.append(torch.where((out.opacity >= min_opacity) & seen, out.depth, torch.nan))
+    return torch.cat(z).double().cpu().numpy() if z else np.zeros(0)
 
 
 @dataclass

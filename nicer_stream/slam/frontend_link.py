@@ -39,7 +39,7 @@ class FrontendLink:
         self.health = FrontendHealth()  # the frontend's own checks of its poses
         self.distrusted: set[int] = set()  # frames whose frontend pose failed them
         self.scene_depth: float | None = None  # the latest checked pose's median landmark depth
-        self.rescaled: list[tuple[int, float]] = []  # (frame, ratio) where its scale left the map's
+        self.scale_off_map: list[tuple[int, float]] = []  # (frame, ratio) where its scale left the map's
 
     @property
     def intr(self) -> Intrinsics | None:
@@ -104,11 +104,10 @@ class FrontendLink:
             n, ratio = self.frontend.seed_landmarks(index, lambda T, uv: depth_at_pixels(
                 model, beta, render, T, self.frontend.intr, uv, cfg.map_landmark_opacity, cfg.map_landmark_samples),
                 check_scale)
-        off = np.isfinite(ratio) and not 1 / cfg.map_landmark_scale <= ratio <= cfg.map_landmark_scale
-        if off:
+        if self.frontend.off_map_scale(ratio):
             log.warning("frame %d: the frontend's landmarks are %.2fx the map's depth: %s", index, ratio,
                         "frontend rescaled to the map" if cfg.map_rescale else "no landmarks from the map")
-            self.rescaled.append((index, ratio))
+            self.scale_off_map.append((index, ratio))
         if n:
             log.info("frame %d: %d landmarks from the map's depth", index, n)
 

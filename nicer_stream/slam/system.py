@@ -222,7 +222,7 @@ class SlamSystem:
                 "disagreements_kept": dict(tracking.verdicts),
                 "unposed_before_start": list(self.startup.unposed),
                 "disagreement_streaks": [{"first_frame": a, "frames": n} for a, n in tracking.disagreements.streaks],
-                "scale_off_map": [{"frame": i, "ratio": round(r, 3)} for i, r in self.front.rescaled],
+                "scale_off_map": [{"frame": i, "ratio": round(r, 3)} for i, r in self.front.scale_off_map],
                 "keyframe_reasons": self.keyframing.reasons()}
 
     def trajectory(self) -> tuple[list[float], list[np.ndarray]]:
