@@ -165,8 +165,7 @@ class ClassicalFrontend:
         Where `min_inliers` of its own landmarks have a map depth too (on every call with
         `check_scale`), the median ratio of their depth to the map's is its scale against the map's:
         beyond `map_landmark_scale` of 1 the frontend is rescaled to the map about the frame's centre
-        (`map_rescale`; the map holds the scale of when it saw the place, the frontend drifts), else
-        nothing is seeded. Returns (landmarks added, that ratio or nan)."""
+        with `map_rescale` (off by default: docs/decisions.md), else nothing is seeded. Returns (landmarks added, that ratio or nan)."""
         ids, uv = self.obs.get(index, (np.zeros(0, np.int64), np.zeros((0, 2))))
         has = np.array([i in self.landmarks for i in ids.tolist()], bool)
         few = has.sum() < self.cfg.map_landmarks_below and not has.all()
