@@ -52,6 +52,14 @@ class FrontendConfig(Checked):
     prior_start: bool = True
     """With depth priors too, start from the frontend's two views, each prior fitted to their
     triangulated points; False, or where that fails: dense flow (`two_view_init`)."""
+    reidentify_px: float = 20.0
+    """A landmark that left the window is recognised again (its SIFT descriptor) by a track
+    without one within this many pixels of its projection (0: never; `frontend/landmark_archive.py`)."""
+    reidentify_frames: int = 150
+    """... for this many frames after it left (a revisit after longer is a loop: the drift since is
+    the pose graph's to correct, not the local BA's) ..."""
+    archive_landmarks: int = 20000
+    """... and at most this many landmarks kept for it, the oldest forgotten first."""
     ba_frames: int = 15
     """Frames in the local bundle adjustment (0: none): the latest trusted frames that each moved
     `ba_baseline_frac` from the one before; it runs whenever one joins."""

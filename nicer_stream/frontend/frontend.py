@@ -12,6 +12,7 @@ import numpy as np
 
 from nicer_stream.config import FrontendConfig
 from nicer_stream.frontend.klt import KltTracks
+from nicer_stream.frontend.landmark_archive import Anchor, ArchivedLandmark, LandmarkArchive
 from nicer_stream.grey import to_grey_u8
 from nicer_stream.frontend.sift import SiftTracks
 from nicer_stream.frontend.schur_ba import bundle_adjust_schur
@@ -84,6 +85,13 @@ class ClassicalFrontend:
         self.posed: list[int] = []  # the bundle adjustment's frames, in the order they were posed
         self.own: dict[int, np.ndarray] = {}  # its own PnP poses, by frame
         self.last_ba_rms = float("nan")
+        # Landmarks no frame of the window sees, to be recognised when the camera looks back
+        # (`landmark_archive.py`); the latest descriptor of every track the window sees; the latest
+        # trusted observation of a landmark by a frame that left the window (a fixed camera in the BA).
+        self.archive = LandmarkArchive(cfg.archive_landmarks)
+        self.descriptor: dict[int, np.ndarray] = {}
+        self.anchors: dict[int, Anchor] = {}
+        self.recognised = 0  # landmarks recognised again, in all
         # Frames whose observations outlive the window: the first view of a start still waiting
         # for its second (a slow camera needs more frames than the window holds).
         self.pinned: set[int] = set()
@@ -101,16 +109,33 @@ class ClassicalFrontend:
         self.intr = intr
         self.obs[index] = self.tracks.step(to_grey_u8(rgb), self._predicted(index), self.cfg.guided_px,
                                              2 * self.cfg.min_inliers)
+        if self._recognises():
+            self.descriptor.update(zip(self.obs[index][0].tolist(), self.tracks.last_desc))
         unpinned = [k for k in sorted(self.obs) if k not in self.pinned]
         for k in unpinned[: max(0, len(unpinned) - self.cfg.window)]:
-            del self.obs[k]
+            ids_k, uv_k = self.obs.pop(k)
+            if k in self.poses and self._recognises():
+                T = self.poses[k]
+                self.anchors.update((t, Anchor(T, p)) for t, p in zip(ids_k.tolist(), uv_k) if t in self.landmarks)
             self.poses.pop(k, None)
             self.own.pop(k, None)
         self.posed = [k for k in self.posed if k in self.poses]
-        # Landmarks of tracks no frame in the window sees any more are dropped: bounded memory.
+        # Landmarks of tracks no frame in the window sees any more leave it (to the archive, when it
+        # recognises them again): bounded memory.
         seen = set(np.concatenate([o[0] for o in self.obs.values()]).tolist())
+        for t in [t for t in self.landmarks if t not in seen]:
+            if t in self.descriptor:
+                self.archive.add(t, ArchivedLandmark(self.landmarks[t], self.descriptor[t],
+                                                     self.parallax.get(t, 0.0), self.anchors.get(t), index))
+        self.archive.forget_before(index - self.cfg.reidentify_frames)
         self.landmarks = {k: X for k, X in self.landmarks.items() if k in seen}
         self.parallax = {k: a for k, a in self.parallax.items() if k in seen}
+        self.descriptor = {k: d for k, d in self.descriptor.items() if k in seen}
+        self.anchors = {k: a for k, a in self.anchors.items() if k in seen}
+
+    def _recognises(self) -> bool:
+        """Whether archived landmarks are recognised again (SIFT descriptors, `reidentify_px`)."""
+        return self.cfg.reidentify_px > 0 and isinstance(self.tracks, SiftTracks)
 
     def _predicted(self, index: int) -> tuple[np.ndarray, np.ndarray] | None:
         """Where the landmarks should appear in frame `index`: (track ids (P,), pixels (P, 2)) from
@@ -134,17 +159,67 @@ class ClassicalFrontend:
         `min_inliers` landmarks agree."""
         if index not in self.obs:
             return None
-        ids, uv = self.obs[index]
-        has = np.array([i in self.landmarks for i in ids.tolist()], bool)
-        if has.sum() < self.cfg.min_inliers:
-            return None
-        X = np.stack([self.landmarks[i] for i in ids[has].tolist()])
-        res = pnp_pose(X, uv[has], self.intr, T_guess, self.cfg.reproj_px, self.cfg.min_inliers)
+        res = self._pnp(index, T_guess)
+        if self._recognises() and len(self.archive) and index == max(self.obs):
+            res = self._recognise(index, res[0] if res is not None else T_guess) or res
         if res is None:
             return None
+        ids, uv = self.obs[index]
+        has = np.array([i in self.landmarks for i in ids.tolist()], bool)
+        X = np.stack([self.landmarks[i] for i in ids[has].tolist()])
         z = project(res[0], X, self.intr)[1]
         self.own[index] = res[0]
         return FrontendPose(res[0], res[1], int(has.sum()), float(np.median(z)))
+
+    def _pnp(self, index: int, T_guess: np.ndarray, extra: tuple[np.ndarray, np.ndarray] | None = None):
+        """PnP (T_world_cam, inliers) of frame `index` from its tracks' landmarks and `extra`
+        (pixels (K, 2), world points (K, 3)), started at `T_guess`; None when too few agree."""
+        uv, X = self.landmark_observations(index)
+        if extra is not None:
+            uv, X = np.concatenate([uv, extra[0]]), np.concatenate([X, extra[1]])
+        if len(X) < self.cfg.min_inliers:
+            return None
+        return pnp_pose(X, uv, self.intr, T_guess, self.cfg.reproj_px, self.cfg.min_inliers)
+
+    def _recognise(self, index: int, T: np.ndarray):
+        """Archived landmarks recognised among the latest frame `index`'s tracks that have none,
+        seen from `T` (its PnP pose, else the caller's guess): matched near their projection
+        (`LandmarkArchive.match`), then kept where a PnP over all its landmarks with them
+        reprojects them within `reproj_px`. Each kept one takes over its track (the track's pixels
+        in every frame become the landmark's observations). Returns that PnP's (T_world_cam,
+        inliers), or None when none was kept."""
+        ids, uv = self.obs[index]
+        free = np.flatnonzero([t not in self.landmarks for t in ids.tolist()])
+        rows, tracks = self.archive.match(T, self.intr, uv[free], self.tracks.last_desc[free],
+                                          self.cfg.reidentify_px, 0.8)
+        if not len(rows):
+            return None
+        rows = free[rows]
+        X = np.stack([self.archive.items[t].point for t in tracks.tolist()])
+        res = self._pnp(index, T, (uv[rows], X))
+        if res is None:
+            return None
+        px, z = project(res[0], X, self.intr)
+        ok = (z > 0) & (np.linalg.norm(px - uv[rows], axis=1) <= self.cfg.reproj_px)
+        if not ok.any():
+            return None
+        self._take_over(ids[rows][ok], tracks[ok])
+        return self._pnp(index, res[0])
+
+    def _take_over(self, old: np.ndarray, tracks: np.ndarray) -> None:
+        """Tracks `old` (K,) become the archived landmarks `tracks` (K,), back in the window."""
+        at = dict(zip(old.tolist(), tracks.tolist()))
+        for k, (ids_k, uv_k) in self.obs.items():
+            if np.isin(ids_k, old).any():
+                self.obs[k] = (np.array([at.get(t, t) for t in ids_k.tolist()], np.int64), uv_k)
+        self.tracks.relabel(old, tracks)
+        for o, t in at.items():
+            a = self.archive.pop(t)
+            self.landmarks[t], self.parallax[t] = a.point, a.parallax_deg
+            self.descriptor[t] = self.descriptor.pop(o, a.descriptor)
+            if a.anchor is not None:
+                self.anchors[t] = a.anchor
+        self.recognised += len(at)
 
     def landmark_observations(self, index: int) -> tuple[np.ndarray, np.ndarray]:
         """(pixels (P, 2), world points (P, 3)) of observed frame `index`'s tracks that have a landmark."""
@@ -205,6 +280,11 @@ class ClassicalFrontend:
                 T[:3, 3] = centre + factor * (T[:3, 3] - centre)
                 poses[k] = T
         self.landmarks = {t: centre + factor * (X - centre) for t, X in self.landmarks.items()}
+        self.archive.rescale(centre, factor)
+        for t, a in self.anchors.items():
+            T = a.T_world_cam.copy()
+            T[:3, 3] = centre + factor * (T[:3, 3] - centre)
+            self.anchors[t] = Anchor(T, a.uv)
 
     def common_tracks(self, a: int, b: int) -> int:
         """How many tracks observed frames `a` and `b` share (0 when either is not observed)."""
@@ -336,8 +416,9 @@ class ClassicalFrontend:
 
     def _bundle_adjust(self) -> None:
         """The last `ba_frames` of its frames and their landmarks, the `ba_fixed` posed first held
-        (gauge and scale). Order of posing, not of frame index: at the start that holds the two
-        views the SLAM began from (frames held between them are posed later)."""
+        (gauge and scale), and, held too, the anchors (`landmark_archive.py`) of those landmarks.
+        Order of posing, not of frame index: at the start that holds the two views the SLAM began
+        from (frames held between them are posed later)."""
         frames = self.posed[-self.cfg.ba_frames:]
         if self.cfg.ba_frames <= 0 or len(frames) <= self.cfg.ba_fixed or not self.landmarks:
             return
@@ -346,25 +427,38 @@ class ClassicalFrontend:
             for t in self.obs[k][0].tolist():
                 if t in self.landmarks:
                     counts[t] = counts.get(t, 0) + 1
-        lm_ids = sorted(t for t, c in counts.items() if c >= 2)  # seen twice: constrained
+        # seen twice (an anchor counts): constrained
+        lm_ids = sorted(t for t, c in counts.items() if c + (t in self.anchors) >= 2)
         if not lm_ids:
             return
         col = {t: j for j, t in enumerate(lm_ids)}
+        fixed: dict[int, int] = {}  # anchor pose (by identity) -> its camera among the held ones
+        held: list[np.ndarray] = []
         cam, pt, uv = [], [], []
+        for t in lm_ids:
+            if t in self.anchors:
+                a = self.anchors[t]
+                if id(a.T_world_cam) not in fixed:
+                    fixed[id(a.T_world_cam)] = len(held)
+                    held.append(a.T_world_cam)
+                cam.append(fixed[id(a.T_world_cam)])
+                pt.append(col[t])
+                uv.append(a.uv)
         for c, k in enumerate(frames):
             ids_k, uv_k = self.obs[k]
             for j, t in enumerate(ids_k.tolist()):
                 if t in col:
-                    cam.append(c)
+                    cam.append(len(held) + c)
                     pt.append(col[t])
                     uv.append(uv_k[j])
         if len(cam) < 6 * len(frames):
             return
         before = [self.poses[k] for k in frames]
         poses, X, self.last_ba_rms = bundle_adjust_schur(
-            before, self.cfg.ba_fixed, np.stack([self.landmarks[t] for t in lm_ids]),
+            held + before, len(held) + self.cfg.ba_fixed, np.stack([self.landmarks[t] for t in lm_ids]),
             np.array(cam), np.array(pt), np.array(uv), self.intr, self.cfg.reproj_px, self.cfg.ba_iters)
-        if self.cfg.ba_fixed == 1:
+        poses = poses[len(held):]
+        if self.cfg.ba_fixed == 1 and not held:  # held anchors fix the scale themselves
             poses, X = hold_scale(before, poses, X)
         for k, T in zip(frames, poses):
             self.poses[k] = T

@@ -51,6 +51,8 @@ class FrontendOdometry:
         self.frontend.posed = []
         self.frontend.poses.clear()
         self.frontend.own.clear()
+        self.frontend.archive.clear()
+        self.frontend.anchors.clear()
         self.anchor, self.lost_run = self.poses[index], 0
         self.held = [index]
         self.frontend.pinned = {index}

@@ -27,6 +27,7 @@ class SiftTracks:
         self.ids = np.zeros(0, np.int64)
         self.seen = np.zeros(0, np.int64)
         self.shape: tuple[int, ...] | None = None
+        self.last_desc = np.zeros((0, 128), np.float32)  # the latest frame's descriptors, as `step` returned its ids
 
     def step(self, grey: np.ndarray, predicted: tuple[np.ndarray, np.ndarray] | None = None,
              radius_px: float = 0.0, min_guided: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -61,7 +62,13 @@ class SiftTracks:
         self.next_id += int(new.sum())
         self._remember(ids, uv, desc)
         self.frame += 1
+        self.last_desc = desc
         return ids, uv
+
+    def relabel(self, old: np.ndarray, new: np.ndarray) -> None:
+        """Live tracks `old` (K,) continue as ids `new` (K,) (landmarks recognised again)."""
+        at = {o: n for o, n in zip(old.tolist(), new.tolist())}
+        self.ids = np.array([at.get(t, t) for t in self.ids.tolist()], np.int64)
 
     def _matches(self, desc: np.ndarray, mask: np.ndarray | None) -> list:
         """Best matches of keypoint descriptors to tracks that pass the ratio test. Under a mask

@@ -215,7 +215,8 @@ class SlamSystem:
     def health_summary(self) -> dict:
         """What went wrong in tracking, for `summary.json`: the frontend's health reports by kind
         (and the first 100), the disagreements settled by evidence, the frames the start passed
-        over, the disagreement streaks, why each keyframe was taken."""
+        over, the disagreement streaks, the landmarks the frontend recognised after they had left
+        its window, why each keyframe was taken."""
         health, tracking = self.front.health, self.tracking
         return {"frontend_reports": health.counts(),
                 "frontend_report_lines": [str(r) for r in health.reports[:100]],
@@ -223,6 +224,7 @@ class SlamSystem:
                 "unposed_before_start": list(self.startup.unposed),
                 "disagreement_streaks": [{"first_frame": a, "frames": n} for a, n in tracking.disagreements.streaks],
                 "scale_off_map": [{"frame": i, "ratio": round(r, 3)} for i, r in self.front.scale_off_map],
+                "landmarks_recognised": self.front.frontend.recognised if self.front.frontend is not None else 0,
                 "keyframe_reasons": self.keyframing.reasons()}
 
     def trajectory(self) -> tuple[list[float], list[np.ndarray]]:

@@ -1,0 +1,115 @@
+"""Landmarks that left the frontend's window, kept to be recognised when the camera looks back.
+
+A track lives while consecutive frames match it; a place seen again after the track was lost
+starts new tracks, new landmarks triangulated from the drifted poses of now, and the scale drifts
+a little more with every return (a camera panning back and forth over one desk). Each archived
+landmark keeps its world point, its latest SIFT descriptor, the parallax it was triangulated with,
+and its latest observation by a trusted frame (that frame's pose and pixel): recognised again, it
+returns with that observation as a fixed camera in the bundle adjustment, which then pulls the new
+poses towards the old ones instead of moving the old point (the sliding-window BA of ORB-SLAM's
+local mapping, where keyframes outside the window stay fixed)."""
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from nicer_stream.geometry.camera import project_world
+from nicer_stream.types import Intrinsics
+
+
+@dataclass(frozen=True)
+class Anchor:
+    """A trusted frame's observation of a landmark: T_world_cam (4, 4) float64 and pixel (2,)."""
+
+    T_world_cam: np.ndarray
+    uv: np.ndarray
+
+
+@dataclass(frozen=True)
+class ArchivedLandmark:
+    """World point (3,), latest descriptor (128,) float32, triangulation parallax in degrees, the
+    latest trusted observation (None when no trusted frame saw it) and the frame it was archived at."""
+
+    point: np.ndarray
+    descriptor: np.ndarray
+    parallax_deg: float
+    anchor: Anchor | None
+    frame: int
+
+
+class LandmarkArchive:
+    """At most `capacity` landmarks by track id, the oldest archived dropped first."""
+
+    def __init__(self, capacity: int) -> None:
+        self.capacity = capacity
+        self.items: OrderedDict[int, ArchivedLandmark] = OrderedDict()
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def add(self, track: int, item: ArchivedLandmark) -> None:
+        self.items[track] = item
+        self.items.move_to_end(track)
+        while len(self.items) > self.capacity:
+            self.items.popitem(last=False)
+
+    def forget_before(self, frame: int) -> None:
+        """Drop the landmarks archived before `frame`."""
+        while self.items and next(iter(self.items.values())).frame < frame:
+            self.items.popitem(last=False)
+
+    def pop(self, track: int) -> ArchivedLandmark:
+        return self.items.pop(track)
+
+    def clear(self) -> None:
+        self.items.clear()
+
+    def rescale(self, centre: np.ndarray, factor: float) -> None:
+        """Scale the points and anchor camera centres by `factor` about world point `centre` (3,)."""
+        def move(T: np.ndarray) -> np.ndarray:
+            T = T.copy()
+            T[:3, 3] = centre + factor * (T[:3, 3] - centre)
+            return T
+        for t, a in self.items.items():
+            anchor = None if a.anchor is None else Anchor(move(a.anchor.T_world_cam), a.anchor.uv)
+            self.items[t] = ArchivedLandmark(centre + factor * (a.point - centre), a.descriptor, a.parallax_deg,
+                                             anchor, a.frame)
+
+    def match(self, T_world_cam: np.ndarray, intr: Intrinsics, uv: np.ndarray, desc: np.ndarray,
+              radius_px: float, ratio: float) -> tuple[np.ndarray, np.ndarray]:
+        """Keypoints (pixels uv (Q, 2), descriptors (Q, 128) float32) recognised as archived
+        landmarks seen from `T_world_cam`: each keypoint's nearest descriptor among the landmarks
+        that project within `radius_px` of it, kept when it passes the ratio test against the
+        second nearest (or is alone within the radius and as close as the ratio-tested matches'
+        90th percentile), one keypoint per landmark. Returns (keypoint rows (K,), track ids (K,))."""
+        empty = np.zeros(0, np.int64), np.zeros(0, np.int64)
+        if not self.items or not len(uv):
+            return empty
+        tracks = np.fromiter(self.items, np.int64, len(self.items))
+        pts = np.stack([a.point for a in self.items.values()])
+        px, z = project_world(T_world_cam, pts, intr)
+        near = (z > 0) & (px[:, 0] >= -radius_px) & (px[:, 0] < intr.width + radius_px) \
+            & (px[:, 1] >= -radius_px) & (px[:, 1] < intr.height + radius_px)
+        if near.sum() < 2:
+            return empty
+        tracks, px = tracks[near], px[near]
+        lib = np.stack([self.items[t].descriptor for t in tracks.tolist()]).astype(np.float32)
+        mask = (np.linalg.norm(uv[:, None, :] - px[None], axis=2) <= radius_px).astype(np.uint8)
+        pairs = cv2.BFMatcher(cv2.NORM_L2).knnMatch(desc.astype(np.float32), lib, k=2, mask=mask)
+        good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < ratio * p[1].distance]
+        if good:
+            bar = np.percentile([m.distance for m in good], 90)
+            good += [p[0] for p in pairs if len(p) == 1 and p[0].distance <= bar]
+        if not good:
+            return empty
+        good.sort(key=lambda m: m.distance)
+        rows, used = [], set()
+        for m in good:  # one keypoint per landmark: the closest descriptor
+            if m.trainIdx not in used:
+                used.add(m.trainIdx)
+                rows.append((m.queryIdx, tracks[m.trainIdx]))
+        q, t = np.array(rows, np.int64).T
+        return q, t
