@@ -12,7 +12,7 @@ import numpy as np
 
 from nicer_stream.config import FrontendConfig
 from nicer_stream.frontend.klt import KltTracks
-from nicer_stream.frontend.landmark_archive import Anchor, ArchivedLandmark, LandmarkArchive
+from nicer_stream.frontend.landmark_archive import Anchor, ArchivedLandmark, LandmarkArchive, scaled_pose
 from nicer_stream.grey import to_grey_u8
 from nicer_stream.frontend.sift import SiftTracks
 from nicer_stream.frontend.schur_ba import bundle_adjust_schur
@@ -55,12 +55,7 @@ def hold_scale(before: list[np.ndarray], after: list[np.ndarray], points: np.nda
     if d_after <= 0:
         return after, points
     s = float(np.linalg.norm(before[1][:3, 3] - before[0][:3, 3])) / d_after
-    out = []
-    for T in after:
-        T = T.copy()
-        T[:3, 3] = c0 + s * (T[:3, 3] - c0)
-        out.append(T)
-    return out, c0 + s * (points - c0)
+    return [scaled_pose(T, c0, s) for T in after], c0 + s * (points - c0)
 
 
 class ClassicalFrontend:
@@ -276,15 +271,10 @@ class ClassicalFrontend:
         point `centre` (3,): its tracks reproject as before, its unit changes."""
         for poses in (self.poses, self.own):
             for k, T in poses.items():
-                T = T.copy()
-                T[:3, 3] = centre + factor * (T[:3, 3] - centre)
-                poses[k] = T
+                poses[k] = scaled_pose(T, centre, factor)
         self.landmarks = {t: centre + factor * (X - centre) for t, X in self.landmarks.items()}
         self.archive.rescale(centre, factor)
-        for t, a in self.anchors.items():
-            T = a.T_world_cam.copy()
-            T[:3, 3] = centre + factor * (T[:3, 3] - centre)
-            self.anchors[t] = Anchor(T, a.uv)
+        self.anchors = {t: Anchor(scaled_pose(a.T_world_cam, centre, factor), a.uv) for t, a in self.anchors.items()}
 
     def common_tracks(self, a: int, b: int) -> int:
         """How many tracks observed frames `a` and `b` share (0 when either is not observed)."""

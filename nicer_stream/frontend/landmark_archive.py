@@ -20,6 +20,13 @@ from nicer_stream.geometry.camera import project_world
 from nicer_stream.types import Intrinsics
 
 
+def scaled_pose(T_world_cam: np.ndarray, centre: np.ndarray, factor: float) -> np.ndarray:
+    """A copy of T_world_cam (4, 4) with its camera centre scaled by `factor` about world point `centre` (3,)."""
+    T = T_world_cam.copy()
+    T[:3, 3] = centre + factor * (T[:3, 3] - centre)
+    return T
+
+
 @dataclass(frozen=True)
 class Anchor:
     """A trusted frame's observation of a landmark: T_world_cam (4, 4) float64 and pixel (2,)."""
@@ -69,12 +76,8 @@ class LandmarkArchive:
 
     def rescale(self, centre: np.ndarray, factor: float) -> None:
         """Scale the points and anchor camera centres by `factor` about world point `centre` (3,)."""
-        def move(T: np.ndarray) -> np.ndarray:
-            T = T.copy()
-            T[:3, 3] = centre + factor * (T[:3, 3] - centre)
-            return T
         for t, a in self.items.items():
-            anchor = None if a.anchor is None else Anchor(move(a.anchor.T_world_cam), a.anchor.uv)
+            anchor = None if a.anchor is None else Anchor(scaled_pose(a.anchor.T_world_cam, centre, factor), a.anchor.uv)
             self.items[t] = ArchivedLandmark(centre + factor * (a.point - centre), a.descriptor, a.parallax_deg,
                                              anchor, a.frame)
 
