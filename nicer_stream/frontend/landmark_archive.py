@@ -13,8 +13,8 @@ from __future__ import annotations
 from collections import OrderedDict
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
+from scipy.spatial import cKDTree
 
 from nicer_stream.geometry.camera import project_world
 from nicer_stream.types import Intrinsics
@@ -87,32 +87,41 @@ class LandmarkArchive:
         landmarks seen from `T_world_cam`: each keypoint's nearest descriptor among the landmarks
         that project within `radius_px` of it, kept when it passes the ratio test against the
         second nearest (or is alone within the radius and as close as the ratio-tested matches'
-        90th percentile), one keypoint per landmark. Returns (keypoint rows (K,), track ids (K,))."""
+        90th percentile), one keypoint per landmark. Returns (keypoint rows (K,), track ids (K,)).
+        Only pairs within the radius are compared (a k-d tree over the projections): the archive
+        holds thousands of landmarks, a frame a thousand keypoints."""
         empty = np.zeros(0, np.int64), np.zeros(0, np.int64)
         if not self.items or not len(uv):
             return empty
         tracks = np.fromiter(self.items, np.int64, len(self.items))
-        pts = np.stack([a.point for a in self.items.values()])
-        px, z = project_world(T_world_cam, pts, intr)
-        near = (z > 0) & (px[:, 0] >= -radius_px) & (px[:, 0] < intr.width + radius_px) \
-            & (px[:, 1] >= -radius_px) & (px[:, 1] < intr.height + radius_px)
+        px, z = project_world(T_world_cam, np.stack([a.point for a in self.items.values()]), intr)
+        near = (z > 0) & np.all((px >= -radius_px) & (px < np.array([intr.width, intr.height]) + radius_px), axis=1)
         if near.sum() < 2:
             return empty
         tracks, px = tracks[near], px[near]
-        lib = np.stack([self.items[t].descriptor for t in tracks.tolist()]).astype(np.float32)
-        mask = (np.linalg.norm(uv[:, None, :] - px[None], axis=2) <= radius_px).astype(np.uint8)
-        pairs = cv2.BFMatcher(cv2.NORM_L2).knnMatch(desc.astype(np.float32), lib, k=2, mask=mask)
-        good = [p[0] for p in pairs if len(p) == 2 and p[0].distance < ratio * p[1].distance]
-        if good:
-            bar = np.percentile([m.distance for m in good], 90)
-            good += [p[0] for p in pairs if len(p) == 1 and p[0].distance <= bar]
-        if not good:
+        within = cKDTree(px).query_ball_point(uv, radius_px)
+        q = np.repeat(np.arange(len(uv)), [len(w) for w in within])
+        if not len(q):
             return empty
-        good.sort(key=lambda m: m.distance)
+        j = np.concatenate([np.asarray(w, np.int64) for w in within])
+        lib = np.stack([self.items[t].descriptor for t in tracks.tolist()]).astype(np.float32)
+        d = np.linalg.norm(desc.astype(np.float32)[q] - lib[j], axis=1)
+        order = np.lexsort((d, q))  # by keypoint, nearest first
+        q, j, d = q[order], j[order], d[order]
+        first = np.r_[True, q[1:] != q[:-1]]
+        lead = np.flatnonzero(first)
+        has_second = np.r_[lead[1:], len(q)] - lead >= 2
+        second_d = np.where(has_second, d[np.minimum(lead + 1, len(d) - 1)], np.inf)
+        good = has_second & (d[lead] < ratio * second_d)
+        if not good.any():
+            return empty
+        bar = np.percentile(d[lead][good], 90)
+        keep = good | (~has_second & (d[lead] <= bar))
+        lead = lead[keep]
         rows, used = [], set()
-        for m in good:  # one keypoint per landmark: the closest descriptor
-            if m.trainIdx not in used:
-                used.add(m.trainIdx)
-                rows.append((m.queryIdx, tracks[m.trainIdx]))
-        q, t = np.array(rows, np.int64).T
-        return q, t
+        for k in lead[np.argsort(d[lead], kind="stable")]:  # one keypoint per landmark: the closest
+            if j[k] not in used:
+                used.add(j[k])
+                rows.append((q[k], tracks[j[k]]))
+        out = np.array(rows, np.int64).T
+        return out[0], out[1]

@@ -10,6 +10,7 @@ from nicer_stream.frontend.landmark_archive import Anchor, ArchivedLandmark, Lan
 from nicer_stream.geometry.camera import project_world
 from nicer_stream.types import Intrinsics
 from sources import open_source
+from tests.nicer_stream.frontend.archive_match_reference import match_reference
 from sources.base import SourceOptions
 
 INTR = Intrinsics(100.0, 100.0, 50.0, 40.0, 100, 80)
@@ -50,6 +51,29 @@ def test_a_keypoint_matches_the_landmark_near_its_projection_with_a_distinct_des
     assert len(rows) == 0
     uv_all, _ = project_world(np.eye(4), np.stack([x.point for x in a.items.values()]), INTR)
     assert np.allclose(uv_all, [[50, 40], [80, 40], [50, 60]])
+
+
+def test_the_radius_search_matches_the_brute_force_reference():
+    """3000 landmarks, 900 keypoints: 300 of them re-observe a landmark (its descriptor with
+    noise, near its projection), the rest are new. The k-d tree's pairs give what OpenCV's
+    brute-force matcher gives over a mask of every pair within the radius, and find most of the
+    re-observed ones."""
+    rng = np.random.default_rng(3)
+    intr = Intrinsics(525.0, 525.0, 320.0, 240.0, 640, 480)
+    a = LandmarkArchive(10_000)
+    pts = np.c_[rng.uniform(-1.5, 1.5, (3000, 2)), rng.uniform(1.5, 4.0, 3000)]
+    lib = rng.random((3000, 128)).astype(np.float32) * 100
+    for t in range(3000):
+        a.add(100 + t, _item(pts[t], lib[t]))
+    px, z = project_world(np.eye(4), pts, intr)
+    seen = rng.choice(np.flatnonzero((px[:, 0] > 0) & (px[:, 0] < 640) & (px[:, 1] > 0) & (px[:, 1] < 480)), 300, replace=False)
+    uv = np.concatenate([px[seen] + rng.normal(0, 3, (300, 2)), rng.uniform([0, 0], [640, 480], (600, 2))])
+    desc = np.concatenate([lib[seen] + rng.normal(0, 3, (300, 128)), rng.random((600, 128)) * 100]).astype(np.float32)
+    fast = a.match(np.eye(4), intr, uv, desc, 20.0, 0.8)
+    slow = match_reference(a, np.eye(4), intr, uv, desc, 20.0, 0.8)
+    assert sorted(zip(*map(np.ndarray.tolist, fast))) == sorted(zip(*map(np.ndarray.tolist, slow)))
+    right = sum(q < 300 and t == 100 + seen[q] for q, t in zip(*fast))
+    assert right >= 250 and len(fast[0]) - right <= 10
 
 
 @pytest.mark.parametrize("recognise", [True, False])
