@@ -81,6 +81,19 @@ class LandmarkArchive:
             self.items[t] = ArchivedLandmark(centre + factor * (a.point - centre), a.descriptor, a.parallax_deg,
                                              anchor, a.frame)
 
+    def in_view(self, T_world_cam: np.ndarray, intr: Intrinsics, margin_px: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The landmarks in front of the camera at `T_world_cam` projecting within `margin_px` of
+        the image: (track ids (T,), pixels (T, 2), descriptors (T, 128) float32)."""
+        if not self.items:
+            return np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros((0, 128), np.float32)
+        tracks = np.fromiter(self.items, np.int64, len(self.items))
+        px, z = project_world(T_world_cam, np.stack([a.point for a in self.items.values()]), intr)
+        size = np.array([intr.width, intr.height])
+        near = (z > 0) & np.all((px >= -margin_px) & (px < size + margin_px), axis=1)
+        lib = np.stack([self.items[t].descriptor for t in tracks[near].tolist()]).astype(np.float32) if near.any() \
+            else np.zeros((0, 128), np.float32)
+        return tracks[near], px[near], lib
+
     def match(self, T_world_cam: np.ndarray, intr: Intrinsics, uv: np.ndarray, desc: np.ndarray,
               radius_px: float, ratio: float) -> tuple[np.ndarray, np.ndarray]:
         """Keypoints (pixels uv (Q, 2), descriptors (Q, 128) float32) recognised as archived
@@ -91,20 +104,14 @@ class LandmarkArchive:
         Only pairs within the radius are compared (a k-d tree over the projections): the archive
         holds thousands of landmarks, a frame a thousand keypoints."""
         empty = np.zeros(0, np.int64), np.zeros(0, np.int64)
-        if not self.items or not len(uv):
+        tracks, px, lib = self.in_view(T_world_cam, intr, radius_px)
+        if len(tracks) < 2 or not len(uv):
             return empty
-        tracks = np.fromiter(self.items, np.int64, len(self.items))
-        px, z = project_world(T_world_cam, np.stack([a.point for a in self.items.values()]), intr)
-        near = (z > 0) & np.all((px >= -radius_px) & (px < np.array([intr.width, intr.height]) + radius_px), axis=1)
-        if near.sum() < 2:
-            return empty
-        tracks, px = tracks[near], px[near]
         within = cKDTree(px).query_ball_point(uv, radius_px)
         q = np.repeat(np.arange(len(uv)), [len(w) for w in within])
         if not len(q):
             return empty
         j = np.concatenate([np.asarray(w, np.int64) for w in within])
-        lib = np.stack([self.items[t].descriptor for t in tracks.tolist()]).astype(np.float32)
         d = np.linalg.norm(desc.astype(np.float32)[q] - lib[j], axis=1)
         order = np.lexsort((d, q))  # by keypoint, nearest first
         q, j, d = q[order], j[order], d[order]
