@@ -5,8 +5,9 @@ starts new tracks, new landmarks triangulated from the drifted poses of now, and
 a little more with every return (a camera panning back and forth over one desk). Each archived
 landmark keeps its world point, its latest SIFT descriptor, the parallax it was triangulated with,
 and its latest observation by a trusted frame (that frame's pose and pixel): recognised again, it
-returns with that observation as a fixed camera in the bundle adjustment, which then pulls the new
-poses towards the old ones instead of moving the old point (the sliding-window BA of ORB-SLAM's
+returns with that observation, which the bundle adjustment holds as a fixed camera (as it holds
+every landmark's latest observation by a frame that left the window), pulling the new poses
+towards the old ones instead of moving the old point (the sliding-window BA of ORB-SLAM's
 local mapping, where keyframes outside the window stay fixed)."""
 from __future__ import annotations
 
