@@ -159,12 +159,10 @@ class ClassicalFrontend:
             res = self._recognise(index, res[0] if res is not None else T_guess) or res
         if res is None:
             return None
-        ids, uv = self.obs[index]
-        has = np.array([i in self.landmarks for i in ids.tolist()], bool)
-        X = np.stack([self.landmarks[i] for i in ids[has].tolist()])
+        X = self.landmark_observations(index)[1]
         z = project(res[0], X, self.intr)[1]
         self.own[index] = res[0]
-        return FrontendPose(res[0], res[1], int(has.sum()), float(np.median(z)))
+        return FrontendPose(res[0], res[1], len(X), float(np.median(z)))
 
     def _pnp(self, index: int, T_guess: np.ndarray, extra: tuple[np.ndarray, np.ndarray] | None = None):
         """PnP (T_world_cam, inliers) of frame `index` from its tracks' landmarks and `extra`

@@ -67,7 +67,7 @@ class SiftTracks:
 
     def relabel(self, old: np.ndarray, new: np.ndarray) -> None:
         """Live tracks `old` (K,) continue as ids `new` (K,) (landmarks recognised again)."""
-        at = {o: n for o, n in zip(old.tolist(), new.tolist())}
+        at = dict(zip(old.tolist(), new.tolist()))
         self.ids = np.array([at.get(t, t) for t in self.ids.tolist()], np.int64)
 
     def _matches(self, desc: np.ndarray, mask: np.ndarray | None) -> list:
